@@ -1,0 +1,90 @@
+"""Value types shared by the guidance laws, the simulator, the flight loop and replay.
+
+Frames: every position and angle here is in the local ENU frame of the mission (x east, y north,
+metres; angles anticlockwise from +x, radians), as in the paper. NED lives in ``companion.io``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+METHODS = ("fixed_l1", "corrector")
+PHASES = ("midcourse", "close_range", "finished")
+MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
+
+
+@dataclass(frozen=True)
+class GuidanceParams:
+    """Tuning of the two-phase guidance. Validates on construction.
+
+    Attributes
+    ----------
+    method : ``"fixed_l1"`` (Park 2007) or ``"corrector"`` (the paper's corrector-aided law).
+    l1_m : look-ahead distance L1 of the close-range phase.
+    speed_m_s : the vehicle's constant ground speed V.
+    rate_hz : guidance rate (the fixed tick).
+    circle_radius_m : radius R of the mid-course initiation circle.
+    midcourse_trigger : ``"auto"`` (documented in docs/guidance.md), ``"paper"`` (start at least
+        2 R0 away, R0 the path's radius of curvature at its start) or ``"off"``.
+    k1_max, k2_max : upper bounds of the online corrector-weight search (both >= 0).
+    d_limit_factor : the re-optimisation window is ``min(d_limit_factor * L1, R_proj) / V``
+        (the paper's d_limit = 2 L1).
+    """
+
+    method: str = "corrector"
+    l1_m: float = 10.0
+    speed_m_s: float = 5.0
+    rate_hz: float = 50.0
+    circle_radius_m: float = 10.0
+    midcourse_trigger: str = "auto"
+    k1_max: float = 1.0
+    k2_max: float = 1.0e4
+    d_limit_factor: float = 2.0
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.midcourse_trigger not in MIDCOURSE_TRIGGERS:
+            raise ValueError(
+                f"midcourse_trigger: expected one of {', '.join(MIDCOURSE_TRIGGERS)}, "
+                f"got {self.midcourse_trigger!r}"
+            )
+        for name in ("l1_m", "speed_m_s", "rate_hz", "circle_radius_m", "d_limit_factor"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+        for name in ("k1_max", "k2_max"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """What the guidance needs of the vehicle at one tick (local ENU)."""
+
+    x_m: float
+    y_m: float
+    course_rad: float  # direction of the ground velocity, anticlockwise from +x (east)
+    speed_m_s: float
+
+
+@dataclass(frozen=True)
+class GuidanceOutput:
+    """One guidance tick: the command and the internals that explain it (for logs and replay)."""
+
+    a_cmd_m_s2: float  # lateral acceleration, positive = turn left (anticlockwise)
+    phase: str  # one of PHASES
+    crosstrack_m: float  # signed distance to the closest path point, positive = left of path
+    s_proj_m: float  # arc length of the closest path point
+    k1: float = math.nan
+    k2: float = math.nan
+    lookahead_xy_m: tuple[float, float] | None = None
+    corrector_xy_m: tuple[float, float] | None = None
+    reoptimised: bool = False  # True on the ticks where k1, k2 were re-optimised
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def finished(self) -> bool:
+        return self.phase == "finished"
