@@ -1,0 +1,339 @@
+"""Reading telemetry logs (tlogs): every MAVLink packet with its time and byte offset.
+
+A tlog is a plain concatenation of records, each an 8-byte big-endian UNIX timestamp in
+microseconds followed by one raw MAVLink packet (MAVLink 1, start byte ``0xFE``, or MAVLink 2,
+start byte ``0xFD``, possibly signed). MAVProxy, QGroundControl and the companion's own recorder
+all write this framing; the file carries both directions of the link and whatever else shared it
+(a ground station, a camera, a second vehicle).
+
+This reader frames the records itself instead of using ``mavutil``'s tlog reader, because a real
+log can be cut mid-packet or carry garbage in the middle, and the right response is to say where
+and carry on with what can be read. A record is accepted when
+
+- its start byte is a MAVLink start byte and the packet fits in the file,
+- its timestamp is plausible (within :data:`MAX_BACKWARD_S` before and :data:`MAX_FORWARD_S`
+  after the previous accepted record), and
+- its checksum (CRC-16/MCRF4XX with the message's CRC_EXTRA) is right; a message id the dialect
+  does not know cannot be checked, so it is accepted only when a plausible record follows it.
+
+When a record fails, the reader scans forward for the next position where a record is accepted,
+and reports the skipped bytes as one :class:`LogWarning` with the byte offset. It never raises on
+the content of the file; it raises :class:`companion.errors.LogError` only when the file cannot be
+opened.
+
+Decoding a packet into a pymavlink message object is the expensive part, so callers can ask for
+only the message ids they use (``decode_ids``); the other records are checked and counted, and
+come back with ``msg`` set to None.
+
+Examples
+--------
+>>> reader = TlogReader("flight.tlog", decode_ids={MSG_ID["HEARTBEAT"]})  # doctest: +SKIP
+>>> for rec in reader:                                                    # doctest: +SKIP
+...     if rec.msg is not None:
+...         print(rec.time_s, rec.src_system, mode_name_from_heartbeat(rec.msg))
+>>> reader.warnings                                                       # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Iterator, NamedTuple
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from pymavlink.generator.mavcrc import x25crc
+
+from companion.errors import LogError
+
+# Framing constants of the tlog and of MAVLink 1 and 2.
+TIMESTAMP_BYTES = 8
+MAGIC_V1 = 0xFE
+MAGIC_V2 = 0xFD
+HEADER_BYTES_V1 = 6
+HEADER_BYTES_V2 = 10
+CRC_BYTES = 2
+SIGNATURE_BYTES = 13
+IFLAG_SIGNED = 0x01
+
+# Timestamp plausibility, relative to the previous accepted record. Clocks can step back a
+# little (NTP), and a log can span a long pause, but garbage read as a timestamp is usually
+# centuries away.
+MAX_BACKWARD_S = 3600.0
+MAX_FORWARD_S = 7 * 86400.0
+# Timestamps of the first record must fall in this UNIX-time range (1990 .. 2200).
+FIRST_TIMESTAMP_RANGE_US = (631152000 * 10**6, 7258118400 * 10**6)
+
+#: Message id by name, and name by id, for the dialect the reader decodes (ardupilotmega,
+#: a superset of common).
+MSG_ID: dict[str, int] = {cls.msgname: msg_id for msg_id, cls in mavlink.mavlink_map.items()}
+MSG_NAME: dict[int, str] = {msg_id: cls.msgname for msg_id, cls in mavlink.mavlink_map.items()}
+
+_TIMESTAMP = struct.Struct(">Q")
+_START_BYTES = re.compile(b"[\xfd\xfe]")
+
+
+class LogRecord(NamedTuple):
+    """One accepted record of a tlog.
+
+    Attributes
+    ----------
+    time_s : UNIX time of the record (from the tlog framing), seconds.
+    offset : byte offset of the record (its timestamp) in the file.
+    msg_id : MAVLink message id.
+    src_system, src_component : sender of the packet.
+    msg : the decoded pymavlink message, or None when ``msg_id`` was not asked for.
+    mavlink_version : 1 or 2.
+    """
+
+    time_s: float
+    offset: int
+    msg_id: int
+    src_system: int
+    src_component: int
+    msg: object | None
+    mavlink_version: int
+
+    @property
+    def msg_type(self) -> str:
+        """Message name (``"UNKNOWN_<id>"`` for an id the dialect does not know)."""
+        return MSG_NAME.get(self.msg_id, f"UNKNOWN_{self.msg_id}")
+
+
+@dataclass(frozen=True)
+class LogWarning:
+    """A stretch of the file that could not be read as records.
+
+    Attributes
+    ----------
+    offset : byte offset where the unreadable stretch starts.
+    length : number of bytes skipped (to the next accepted record or the end of the file).
+    reason : why the first record at ``offset`` was rejected.
+    """
+
+    offset: int
+    length: int
+    reason: str
+
+    def __str__(self) -> str:
+        return f"byte {self.offset}: skipped {self.length} bytes ({self.reason})"
+
+    def as_dict(self) -> dict:
+        return {"offset": self.offset, "length": self.length, "reason": self.reason}
+
+
+class _Reject(Exception):
+    """Internal: the record at a position is not acceptable (message says why)."""
+
+
+class TlogReader:
+    """Iterate over the records of a tlog, skipping and reporting what cannot be read.
+
+    Parameters
+    ----------
+    path : the tlog file.
+    decode_ids : message ids to decode into pymavlink messages (None decodes every known id).
+        Records of other ids are still checked (CRC) and yielded with ``msg=None``.
+    on_warning : called with each :class:`LogWarning` as it is found (they are also collected in
+        :attr:`warnings`).
+
+    Attributes
+    ----------
+    size_bytes : file size.
+    warnings : every :class:`LogWarning`, in file order, after (or during) iteration.
+    records : number of records accepted so far.
+    bytes_skipped : total bytes that could not be read as records.
+    position : byte offset the reader has reached (for progress reporting).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        decode_ids: Iterable[int] | None = None,
+        on_warning: Callable[[LogWarning], None] | None = None,
+    ):
+        self.path = Path(path)
+        try:
+            self._data = self.path.read_bytes()
+        except OSError as err:
+            raise LogError(f"{self.path}: cannot read the log ({err.strerror or err})") from err
+        self.size_bytes = len(self._data)
+        self.decode_ids = None if decode_ids is None else frozenset(decode_ids)
+        self.on_warning = on_warning
+        self.warnings: list[LogWarning] = []
+        self.records = 0
+        self.bytes_skipped = 0
+        self.position = 0
+        self._mav = mavlink.MAVLink(None)
+
+    # -- framing ---------------------------------------------------------------------------
+
+    def _packet_length(self, pos: int) -> tuple[int, int, int, int, int]:
+        """Length and header fields of the packet whose start byte is at ``pos``.
+
+        Returns ``(packet_bytes, version, msg_id, src_system, src_component)``.
+        """
+        data = self._data
+        magic = data[pos]
+        if magic == MAGIC_V2:
+            if pos + HEADER_BYTES_V2 > len(data):
+                raise _Reject("file ends inside a MAVLink 2 header")
+            payload = data[pos + 1]
+            signed = data[pos + 2] & IFLAG_SIGNED
+            msg_id = data[pos + 7] | (data[pos + 8] << 8) | (data[pos + 9] << 16)
+            total = HEADER_BYTES_V2 + payload + CRC_BYTES + (SIGNATURE_BYTES if signed else 0)
+            return total, 2, msg_id, data[pos + 5], data[pos + 6]
+        if magic == MAGIC_V1:
+            if pos + HEADER_BYTES_V1 > len(data):
+                raise _Reject("file ends inside a MAVLink 1 header")
+            payload = data[pos + 1]
+            total = HEADER_BYTES_V1 + payload + CRC_BYTES
+            return total, 1, data[pos + 5], data[pos + 3], data[pos + 4]
+        raise _Reject(f"no MAVLink start byte (found 0x{magic:02x})")
+
+    def _timestamp_ok(self, time_us: int, prev_us: int | None) -> bool:
+        if prev_us is None:
+            return FIRST_TIMESTAMP_RANGE_US[0] <= time_us <= FIRST_TIMESTAMP_RANGE_US[1]
+        delta_s = (time_us - prev_us) * 1e-6
+        return -MAX_BACKWARD_S <= delta_s <= MAX_FORWARD_S
+
+    def _plausible_start(self, pos: int, prev_us: int | None) -> bool:
+        """Cheap check that a record could start at ``pos`` (used after unknown ids)."""
+        data = self._data
+        if pos == len(data):
+            return True
+        if pos + TIMESTAMP_BYTES + 1 > len(data):
+            return False
+        (time_us,) = _TIMESTAMP.unpack_from(data, pos)
+        return data[pos + TIMESTAMP_BYTES] in (MAGIC_V1, MAGIC_V2) and self._timestamp_ok(time_us, prev_us)
+
+    def _try_record(self, pos: int, prev_us: int | None) -> tuple[LogRecord, int, int]:
+        """Accept the record at ``pos`` or raise :class:`_Reject`.
+
+        Returns ``(record, next_position, time_us)``.
+        """
+        data = self._data
+        if pos + TIMESTAMP_BYTES + 1 > len(data):
+            raise _Reject("file ends inside a record (truncated)")
+        (time_us,) = _TIMESTAMP.unpack_from(data, pos)
+        if not self._timestamp_ok(time_us, prev_us):
+            raise _Reject("implausible timestamp")
+        start = pos + TIMESTAMP_BYTES
+        total, version, msg_id, src_system, src_component = self._packet_length(start)
+        end = start + total
+        if end > len(data):
+            raise _Reject(f"file ends inside a packet (truncated, {end - len(data)} bytes missing)")
+        cls = mavlink.mavlink_map.get(msg_id)
+        decode = self.decode_ids is None or msg_id in self.decode_ids
+        msg = None
+        if cls is None:
+            if not self._plausible_start(end, time_us):
+                raise _Reject(f"unknown message id {msg_id} not followed by a record")
+        elif decode:
+            try:
+                msg = self._mav.decode(bytearray(data[start:end]))
+            except Exception as err:  # pymavlink raises MAVError and struct errors alike
+                raise _Reject(f"undecodable packet: {err}") from None
+            msg._timestamp = time_us * 1e-6
+        else:
+            sig = SIGNATURE_BYTES if (version == 2 and data[start + 2] & IFLAG_SIGNED) else 0
+            crc_end = end - sig
+            crc_buf = bytearray(data[start + 1: crc_end - CRC_BYTES])
+            crc_buf.append(cls.crc_extra)
+            crc = data[crc_end - 2] | (data[crc_end - 1] << 8)
+            if x25crc(crc_buf).crc != crc:
+                raise _Reject(f"bad checksum in message id {msg_id}")
+        record = LogRecord(time_us * 1e-6, pos, msg_id, src_system, src_component, msg, version)
+        return record, end, time_us
+
+    def _resync(self, pos: int, prev_us: int | None):
+        """Find the next acceptable record after ``pos``; None when there is none."""
+        search = pos + TIMESTAMP_BYTES + 1
+        while True:
+            match = _START_BYTES.search(self._data, search)
+            if match is None:
+                return None
+            candidate = match.start() - TIMESTAMP_BYTES
+            try:
+                return candidate, self._try_record(candidate, prev_us)
+            except _Reject:
+                search = match.start() + 1
+
+    def _warn(self, offset: int, length: int, reason: str) -> None:
+        warning = LogWarning(offset, length, reason)
+        self.warnings.append(warning)
+        self.bytes_skipped += length
+        if self.on_warning is not None:
+            self.on_warning(warning)
+
+    # -- iteration -------------------------------------------------------------------------
+
+    def __iter__(self) -> Iterator[LogRecord]:
+        pos = 0
+        prev_us: int | None = None
+        size = len(self._data)
+        while pos < size:
+            self.position = pos
+            try:
+                record, nxt, time_us = self._try_record(pos, prev_us)
+            except _Reject as why:
+                found = self._resync(pos, prev_us)
+                if found is None:
+                    self._warn(pos, size - pos, str(why))
+                    break
+                new_pos, (record, nxt, time_us) = found
+                self._warn(pos, new_pos - pos, str(why))
+            self.records += 1
+            prev_us = time_us
+            pos = nxt
+            yield record
+        self.position = size
+
+
+def read_tlog(path: str | Path, decode_ids: Iterable[int] | None = None) -> tuple[list[LogRecord], list[LogWarning]]:
+    """Read a whole tlog: ``(records, warnings)``. See :class:`TlogReader`."""
+    reader = TlogReader(path, decode_ids=decode_ids)
+    records = list(reader)
+    return records, reader.warnings
+
+
+# -- naming helpers (pymavlink's enums and mode tables stay behind this module) -------------
+
+def enum_name(enum: str, value: int) -> str:
+    """Name of a MAVLink enum value, e.g. ``enum_name("MAV_TYPE", 2) == "MAV_TYPE_QUADROTOR"``."""
+    entry = mavlink.enums.get(enum, {}).get(value)
+    return entry.name if entry is not None else f"{enum}_{value}"
+
+
+MAV_AUTOPILOT_ARDUPILOTMEGA = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+MAV_AUTOPILOT_PX4 = mavlink.MAV_AUTOPILOT_PX4
+MAV_AUTOPILOT_INVALID = mavlink.MAV_AUTOPILOT_INVALID
+MAV_MODE_FLAG_SAFETY_ARMED = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+
+
+def mode_name(autopilot: int, mav_type: int, base_mode: int, custom_mode: int) -> str:
+    """Flight-mode name from the fields of a HEARTBEAT.
+
+    PX4 packs ``custom_mode = (main << 16) | (sub << 24)`` (e.g. OFFBOARD, MISSION, LOITER for
+    AUTO/Hold); ArduPilot puts the vehicle's mode number in ``custom_mode`` and its meaning
+    depends on the vehicle type (Copter 4 GUIDED, Plane/Rover 15 GUIDED). Anything else, or a
+    number neither table knows, is returned as ``"custom_mode <n>"``.
+    """
+    if autopilot == MAV_AUTOPILOT_PX4:
+        name = mavutil.interpret_px4_mode(base_mode, custom_mode)
+        if name.startswith("Mode("):
+            return f"custom_mode {custom_mode}"
+        return name
+    if autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA and base_mode & MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+        table = mavutil.mode_mapping_bynumber(mav_type) or {}
+        if custom_mode in table:
+            return table[custom_mode]
+    return f"custom_mode {custom_mode}"
+
+
+def mode_name_from_heartbeat(msg) -> str:
+    """:func:`mode_name` of a decoded HEARTBEAT message."""
+    return mode_name(msg.autopilot, msg.type, msg.base_mode, msg.custom_mode)
