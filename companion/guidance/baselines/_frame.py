@@ -1,0 +1,129 @@
+"""Path-relative quantities every baseline law needs at one tick (pure maths, ENU).
+
+The baselines talk to a :class:`companion.geometry.paths.Path` through the documented contract
+only (``point``, ``tangent``, ``curvature``, ``project``, ``length_m``, ``closed``). This module
+collects the few derived quantities they share, so that each law file reads like its equations:
+
+- :func:`path_frame`: closest point, unit tangent, signed curvature and signed cross-track error
+  (positive when the vehicle is LEFT of the path, i.e. on the side the left normal points to);
+- :func:`lookahead_s`: the first arc length forward of ``s_from`` whose point lies at Euclidean
+  distance ``L`` from the vehicle (the look-ahead point of L1 guidance and pure pursuit);
+- :func:`wrap_pi` and :func:`is_finished` (an open path is finished once the projection reaches
+  its end).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+#: Arc-length tolerance used to decide that the projection has reached the end of an open path.
+END_TOL_M = 1.0e-3
+
+
+def wrap_pi(angle_rad: float) -> float:
+    """Wrap an angle to [-pi, pi)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _as_s(result) -> float:
+    """Arc length out of a projection/look-ahead result (a float, or a tuple whose first item is s)."""
+    if isinstance(result, (tuple, list)):
+        return float(result[0])
+    s = getattr(result, "s_m", None)
+    return float(result if s is None else s)
+
+
+def _xy(v) -> tuple[float, float]:
+    return float(v[0]), float(v[1])
+
+
+@dataclass(frozen=True)
+class PathFrame:
+    """The path seen from the vehicle at one tick (ENU metres, radians)."""
+
+    s_m: float  # arc length of the closest point
+    px_m: float  # closest point
+    py_m: float
+    tx: float  # unit tangent at the closest point
+    ty: float
+    curvature_1_m: float  # signed curvature at the closest point (left turn positive)
+    crosstrack_m: float  # signed distance, positive = vehicle left of the path
+
+    @property
+    def tangent_rad(self) -> float:
+        return math.atan2(self.ty, self.tx)
+
+
+def wrap_s(path, s_m: float) -> float:
+    """Arc length mapped into ``[0, length_m]`` (modulo the length on a closed path, else clamped)."""
+    length = float(path.length_m)
+    if path.closed:
+        return s_m % length
+    return min(max(s_m, 0.0), length)
+
+
+def path_frame(path, x_m: float, y_m: float, s_hint_m: float | None) -> PathFrame:
+    """Closest point, tangent, curvature and signed cross-track error of the vehicle at (x, y)."""
+    s = _as_s(path.project(x_m, y_m, s_hint_m))
+    frame = getattr(path, "frame", None)
+    if frame is not None:  # companion.geometry.paths.Path: point, tangent and curvature in one call
+        px, py, tx, ty, k = frame(s)
+    else:
+        px, py = _xy(path.point(s))
+        tx, ty = _xy(path.tangent(s))
+        k = float(path.curvature(s))
+    norm = math.hypot(tx, ty) or 1.0
+    tx, ty = tx / norm, ty / norm
+    # cross(t, p_vehicle - p_path): positive when the vehicle is on the left of the direction of travel.
+    d = tx * (y_m - py) - ty * (x_m - px)
+    return PathFrame(s, px, py, tx, ty, float(k), d)
+
+
+def lookahead_s(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> float | None:
+    """First arc length forward of ``s_from_m`` at Euclidean distance ``l_m`` from (x, y).
+
+    Uses ``path.lookahead`` when the path has it (same contract). Otherwise marches forward in
+    steps of ``l_m / 4`` until a point at least ``l_m`` away is found, then bisects the bracket (24 halvings, far below a millimetre). Returns ``None`` when there is no
+    such point: either the vehicle is farther than ``l_m`` from the point at ``s_from_m`` (the
+    look-ahead circle does not reach the path there), or the whole rest of an open path lies
+    within ``l_m`` of the vehicle (it is about to finish).
+
+    On a closed path the search covers one lap forward of ``s_from_m``; the returned arc length is
+    unwrapped (it may exceed ``length_m``); use :func:`wrap_s` before evaluating the path.
+    """
+    native = getattr(path, "lookahead", None)
+    if native is not None:  # companion.geometry.paths.Path has the same contract, faster
+        result = native(x_m, y_m, l_m, s_from_m)
+        return None if result is None else _as_s(result)
+    length = float(path.length_m)
+    s_end = s_from_m + length if path.closed else length
+
+    def dist(s: float) -> float:
+        qx, qy = _xy(path.point(wrap_s(path, s)))
+        return math.hypot(qx - x_m, qy - y_m)
+
+    if dist(s_from_m) >= l_m:
+        return None  # the vehicle is farther than L from the closest point: no look-ahead circle crossing
+    step = max(l_m / 4.0, 1.0e-3)
+    lo = s_from_m
+    hi = lo
+    while True:
+        hi = min(lo + step, s_end)
+        if dist(hi) >= l_m:
+            break
+        if hi >= s_end:
+            return None
+        lo = hi
+    for _ in range(24):
+        mid = 0.5 * (lo + hi)
+        if dist(mid) >= l_m:
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def is_finished(path, s_m: float) -> bool:
+    """An open path is finished once its closest point is its end; a closed path never finishes."""
+    return (not path.closed) and s_m >= float(path.length_m) - END_TOL_M
