@@ -1,0 +1,484 @@
+"""The mission file format, described once in Python.
+
+Everything about the format lives in :data:`MISSION`: the keys, their types, ranges, defaults and
+descriptions. Two things are generated from it:
+
+- the validator, :func:`validate`, which walks a parsed YAML document against the description and
+  returns the document with defaults filled in plus every problem found (key path and message);
+- the JSON Schema, :func:`json_schema`, committed as ``companion/mission/mission.schema.json`` for
+  editors (``python -m companion.mission.schema > companion/mission/mission.schema.json``; a test
+  checks the committed file is current).
+
+Checks that involve several keys at once (``origin`` required for ``frame: geodetic``, ranges in
+increasing order, path geometry) are in :mod:`companion.mission.loader`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+_MISSING = object()
+
+
+@dataclass(frozen=True)
+class Number:
+    """A finite real number (booleans refused), optionally an integer, with optional bounds."""
+
+    minimum: float | None = None
+    exclusive_minimum: float | None = None
+    maximum: float | None = None
+    exclusive_maximum: float | None = None
+    integer: bool = False
+    nonzero: bool = False
+
+    def expected(self) -> str:
+        what = "an integer" if self.integer else "a finite number"
+        bounds = []
+        if self.minimum is not None:
+            bounds.append(f">= {self.minimum:g}")
+        if self.exclusive_minimum is not None:
+            bounds.append(f"> {self.exclusive_minimum:g}")
+        if self.maximum is not None:
+            bounds.append(f"<= {self.maximum:g}")
+        if self.exclusive_maximum is not None:
+            bounds.append(f"< {self.exclusive_maximum:g}")
+        if self.nonzero:
+            bounds.append("!= 0")
+        return what + (" " + " and ".join(bounds) if bounds else "")
+
+
+@dataclass(frozen=True)
+class String:
+    """A string, optionally one of ``enum``, or an expression in ``variable``."""
+
+    enum: tuple[str, ...] | None = None
+    max_length: int = 2000
+    variable: str | None = None  # set for expressions (checked by the loader's expression parser)
+
+    def expected(self) -> str:
+        if self.enum:
+            return "one of " + ", ".join(self.enum)
+        if self.variable:
+            return f"an expression in {self.variable}"
+        return "a string"
+
+
+@dataclass(frozen=True)
+class Boolean:
+    def expected(self) -> str:
+        return "true or false"
+
+
+@dataclass(frozen=True)
+class Array:
+    """A list of ``items`` with a length in ``[min_items, max_items]``."""
+
+    items: Any
+    min_items: int = 0
+    max_items: int | None = None
+    description: str = ""
+
+    def expected(self) -> str:
+        if self.max_items == self.min_items:
+            return f"a list of {self.min_items} items"
+        if self.max_items is None:
+            return f"a list of at least {self.min_items} items"
+        return f"a list of {self.min_items} to {self.max_items} items"
+
+
+@dataclass(frozen=True)
+class Field:
+    """One key of an :class:`Object`."""
+
+    spec: Any
+    description: str
+    required: bool = False
+    default: Any = _MISSING
+
+
+@dataclass(frozen=True)
+class Object:
+    """A mapping with exactly the keys in ``fields`` (unknown keys are errors)."""
+
+    fields: dict[str, Field]
+    description: str = ""
+
+    def expected(self) -> str:
+        return "a mapping with keys " + ", ".join(self.fields)
+
+
+@dataclass(frozen=True)
+class Tagged:
+    """A mapping whose ``tag`` key selects which :class:`Object` describes the rest."""
+
+    variants: dict[str, Object]
+    tag: str = "type"
+    description: str = ""
+
+    def expected(self) -> str:
+        return f"a mapping with {self.tag}: one of " + ", ".join(self.variants)
+
+
+# --------------------------------------------------------------------------------------------
+# The format
+# --------------------------------------------------------------------------------------------
+
+FRAMES = ("local_enu", "local_ned", "geodetic")
+ON_FINISH = ("hold", "loiter", "rtl", "land")
+METHODS = ("fixed_l1", "corrector")
+MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
+MAX_POINTS = 10000
+
+_FINITE = Number()
+_POSITIVE = Number(exclusive_minimum=0)
+_XY = Array(_FINITE, 2, 2, "a point [x_m, y_m] in the mission frame")
+_RANGE = Array(_FINITE, 2, 2, "[first, last], first < last")
+_LATLON = Array(_FINITE, 2, 2, "[lat_deg, lon_deg] on WGS-84")
+
+PATH = Tagged(
+    description="The reference path, in the mission frame.",
+    variants={
+        "function": Object(
+            description="y as a function of x over a range of x.",
+            fields={
+                "type": Field(String(enum=("function",)), "path kind", required=True),
+                "y_of_x": Field(String(variable="x"), "y in metres as an expression in x (metres)",
+                                required=True),
+                "x_range_m": Field(_RANGE, "[x_first_m, x_last_m]; the path runs from the first to "
+                                   "the last (last < first flies towards -x)", required=True),
+            },
+        ),
+        "parametric": Object(
+            description="x(s), y(s) over a parameter range; s need not be arc length.",
+            fields={
+                "type": Field(String(enum=("parametric",)), "path kind", required=True),
+                "x_of_s": Field(String(variable="s"), "x in metres as an expression in s", required=True),
+                "y_of_s": Field(String(variable="s"), "y in metres as an expression in s", required=True),
+                "s_range": Field(_RANGE, "[s_first, s_last], s_first < s_last", required=True),
+                "closed": Field(Boolean(), "a loop flown continuously (the curve must end where it "
+                                "starts, with the same heading)", default=False),
+            },
+        ),
+        "waypoints": Object(
+            description="Points joined into a C^2 curve: an interpolating cubic spline through every "
+                        "point (chord-length parameter), or, with corner_radius_m, straight legs "
+                        "with rounded corners and curvature ramps (the path cuts the corners).",
+            fields={
+                "type": Field(String(enum=("waypoints",)), "path kind", required=True),
+                "points_m": Field(Array(_XY, 2, MAX_POINTS), "points [x_m, y_m] in the mission frame"),
+                "points_deg": Field(Array(_LATLON, 2, MAX_POINTS),
+                                    "points [lat_deg, lon_deg] (frame: geodetic only)"),
+                "corner_radius_m": Field(_POSITIVE, "round each corner with an arc of this radius "
+                                         "(and curvature ramps) instead of a spline"),
+                "closed": Field(Boolean(), "a loop: the last point joins the first", default=False),
+            },
+        ),
+        "segments": Object(
+            description="Straight lines and circular arcs, tangent to each other; each curvature "
+                        "jump is replaced by a linear curvature ramp (clothoid) of length blend_m so "
+                        "that the path is C^2.",
+            fields={
+                "type": Field(String(enum=("segments",)), "path kind", required=True),
+                "start_m": Field(_XY, "first point [x_m, y_m]", default=[0.0, 0.0]),
+                "start_heading_deg": Field(_FINITE, "heading at the first point, in the frame's angle "
+                                           "convention", default=0.0),
+                "blend_m": Field(Number(minimum=0), "length of each curvature ramp (0: lines and "
+                                 "arcs only, curvature jumps)", default=5.0),
+                "segments": Field(
+                    Array(
+                        Tagged(
+                            variants={
+                                "line": Object(
+                                    fields={
+                                        "type": Field(String(enum=("line",)), "segment kind",
+                                                      required=True),
+                                        "length_m": Field(_POSITIVE, "length", required=True),
+                                    },
+                                ),
+                                "arc": Object(
+                                    fields={
+                                        "type": Field(String(enum=("arc",)), "segment kind",
+                                                      required=True),
+                                        "radius_m": Field(_POSITIVE, "radius", required=True),
+                                        "turn_deg": Field(
+                                            Number(minimum=-360, maximum=360, nonzero=True),
+                                            "turn angle, positive = left in ENU (anticlockwise)",
+                                            required=True),
+                                    },
+                                ),
+                            },
+                            description="one line or arc",
+                        ),
+                        1, 1000,
+                    ),
+                    "the segments in flying order", required=True),
+                "closed": Field(Boolean(), "a loop: the segments must end where they start",
+                                default=False),
+            },
+        ),
+    },
+)
+
+MISSION = Object(
+    description="A companion mission: a reference path in local metres and how to fly it.",
+    fields={
+        "version": Field(Number(minimum=1, maximum=1, integer=True), "format version", default=1),
+        "name": Field(String(max_length=200), "a short name", required=True),
+        "frame": Field(String(enum=FRAMES), "local_enu: x east, y north, angles anticlockwise from "
+                       "east; local_ned: x north, y east, angles clockwise from north; geodetic: "
+                       "local ENU metres about origin (waypoints may be given in degrees)",
+                       default="local_enu"),
+        "origin": Field(
+            Object(
+                fields={
+                    "lat_deg": Field(Number(minimum=-90, maximum=90), "latitude", required=True),
+                    "lon_deg": Field(Number(minimum=-180, maximum=180), "longitude", required=True),
+                    "alt_m": Field(_FINITE, "height above the WGS-84 ellipsoid", default=0.0),
+                },
+            ),
+            "the local origin on WGS-84 (frame: geodetic only)"),
+        "speed_m_s": Field(Number(exclusive_minimum=0, maximum=100), "constant ground speed V",
+                           required=True),
+        "altitude_m": Field(Number(exclusive_minimum=0, maximum=10000),
+                            "flight height above the local origin", default=10.0),
+        "path": Field(PATH, "the reference path", required=True),
+        "guidance": Field(
+            Object(
+                fields={
+                    "method": Field(String(enum=METHODS), "guidance law", default="corrector"),
+                    "l1_m": Field(_POSITIVE, "look-ahead distance L1", default=10.0),
+                    "rate_hz": Field(Number(exclusive_minimum=0, maximum=1000), "guidance rate",
+                                     default=50.0),
+                    "k1_max": Field(Number(minimum=0), "upper bound of the corrector weight k1",
+                                    default=1.0),
+                    "k2_max": Field(Number(minimum=0), "upper bound of the corrector weight k2",
+                                    default=1.0e4),
+                    "d_limit_factor": Field(_POSITIVE, "re-optimisation window: min(d_limit_factor "
+                                            "* L1, R_proj) / V", default=2.0),
+                },
+            ),
+            "guidance tuning", default={}),
+        "midcourse": Field(
+            Object(
+                fields={
+                    "circle_radius_m": Field(_POSITIVE, "radius R of the initiation circles",
+                                             default=10.0),
+                    "trigger": Field(String(enum=MIDCOURSE_TRIGGERS), "when the mid-course phase "
+                                     "runs (see docs/guidance.md)", default="auto"),
+                },
+            ),
+            "mid-course (path acquisition) phase", default={}),
+        "on_finish": Field(String(enum=ON_FINISH), "what the vehicle does at the end of the path",
+                           default="hold"),
+        "start": Field(
+            Object(
+                fields={
+                    "x_m": Field(_FINITE, "first coordinate in the mission frame", required=True),
+                    "y_m": Field(_FINITE, "second coordinate in the mission frame", required=True),
+                    "heading_deg": Field(_FINITE, "initial course, in the frame's angle convention",
+                                         required=True),
+                },
+            ),
+            "initial vehicle state for simulations"),
+    },
+)
+
+
+# --------------------------------------------------------------------------------------------
+# Validator
+# --------------------------------------------------------------------------------------------
+
+
+def _got(value: Any) -> str:
+    if value is None:
+        return "nothing"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        text = value if len(value) <= 40 else value[:37] + "..."
+        return repr(text)
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return f"a list of {len(value)} items"
+    return type(value).__name__
+
+
+def _join(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key
+
+
+def validate(value: Any, spec: Any = MISSION, path: str = "") -> tuple[Any, list[tuple[str, str]]]:
+    """Check ``value`` (parsed YAML) against ``spec``.
+
+    Returns
+    -------
+    (clean, problems)
+        ``clean`` is ``value`` with defaults filled in (``None`` where a value was unusable);
+        ``problems`` lists ``(key_path, message)`` for every problem, ``key_path`` like
+        ``path.points_m[3]`` and ``message`` like ``expected a finite number, got 'abc'``.
+    """
+    problems: list[tuple[str, str]] = []
+    clean = _validate(value, spec, path, problems)
+    return clean, problems
+
+
+def _validate(value, spec, path, problems):
+    where = path or "(top level)"
+    if isinstance(spec, Number):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if ok and not math.isfinite(value):
+            problems.append((where, f"expected {spec.expected()}, got {value!r}"))
+            return None
+        if ok and spec.integer and float(value) != int(value):
+            ok = False
+        if ok:
+            v = float(value)
+            if ((spec.minimum is not None and v < spec.minimum)
+                    or (spec.exclusive_minimum is not None and v <= spec.exclusive_minimum)
+                    or (spec.maximum is not None and v > spec.maximum)
+                    or (spec.exclusive_maximum is not None and v >= spec.exclusive_maximum)
+                    or (spec.nonzero and v == 0)):
+                ok = False
+        if not ok:
+            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
+            return None
+        return int(value) if spec.integer else float(value)
+    if isinstance(spec, String):
+        if not isinstance(value, str):
+            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
+            return None
+        if spec.enum and value not in spec.enum:
+            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
+            return None
+        if len(value) > spec.max_length:
+            problems.append((where, f"expected at most {spec.max_length} characters, got {len(value)}"))
+            return None
+        if not spec.enum and not value.strip():
+            problems.append((where, f"expected {spec.expected()}, got an empty string"))
+            return None
+        return value
+    if isinstance(spec, Boolean):
+        if not isinstance(value, bool):
+            problems.append((where, f"expected true or false, got {_got(value)}"))
+            return None
+        return value
+    if isinstance(spec, Array):
+        if not isinstance(value, list):
+            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
+            return None
+        if len(value) < spec.min_items or (spec.max_items is not None and len(value) > spec.max_items):
+            problems.append((where, f"expected {spec.expected()}, got {len(value)}"))
+            return None
+        out = [_validate(item, spec.items, f"{path}[{i}]", problems) for i, item in enumerate(value)]
+        return out
+    if isinstance(spec, Tagged):
+        if not isinstance(value, dict):
+            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
+            return None
+        kind = value.get(spec.tag)
+        if kind not in spec.variants:
+            problems.append((_join(path, spec.tag),
+                             f"expected one of {', '.join(spec.variants)}, got {_got(kind)}"))
+            return None
+        return _validate(value, spec.variants[kind], path, problems)
+    if isinstance(spec, Object):
+        if not isinstance(value, dict):
+            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
+            return None
+        out = {}
+        for key in value:
+            if key not in spec.fields:
+                problems.append((_join(path, str(key)),
+                                 f"unknown key; expected one of {', '.join(spec.fields)}"))
+        for key, fld in spec.fields.items():
+            if key in value:
+                out[key] = _validate(value[key], fld.spec, _join(path, key), problems)
+            elif fld.required:
+                problems.append((_join(path, key), f"missing; expected {fld.spec.expected()}"))
+                out[key] = None
+            elif fld.default is not _MISSING:
+                default = fld.default
+                if isinstance(fld.spec, Object) and isinstance(default, dict):
+                    default = _validate(default, fld.spec, _join(path, key), problems)
+                out[key] = default
+            else:
+                out[key] = None
+        return out
+    raise TypeError(f"unknown schema node {spec!r}")  # a bug in this module, not in the file
+
+
+# --------------------------------------------------------------------------------------------
+# JSON Schema
+# --------------------------------------------------------------------------------------------
+
+
+def _json(spec: Any, description: str = "") -> dict:
+    if isinstance(spec, Number):
+        out: dict = {"type": "integer" if spec.integer else "number"}
+        for attr, key in (("minimum", "minimum"), ("exclusive_minimum", "exclusiveMinimum"),
+                          ("maximum", "maximum"), ("exclusive_maximum", "exclusiveMaximum")):
+            if getattr(spec, attr) is not None:
+                out[key] = getattr(spec, attr)
+        if spec.nonzero:
+            out["not"] = {"const": 0}
+    elif isinstance(spec, String):
+        out = {"type": "string"}
+        if spec.enum:
+            out["enum"] = list(spec.enum)
+        out["maxLength"] = spec.max_length
+    elif isinstance(spec, Boolean):
+        out = {"type": "boolean"}
+    elif isinstance(spec, Array):
+        out = {"type": "array", "items": _json(spec.items), "minItems": spec.min_items}
+        if spec.max_items is not None:
+            out["maxItems"] = spec.max_items
+        description = description or spec.description
+    elif isinstance(spec, Object):
+        out = {
+            "type": "object",
+            "properties": {},
+            "additionalProperties": False,
+        }
+        for key, fld in spec.fields.items():
+            prop = _json(fld.spec, fld.description)
+            if fld.default is not _MISSING:
+                prop["default"] = fld.default
+            out["properties"][key] = prop
+        required = [k for k, f in spec.fields.items() if f.required]
+        if required:
+            out["required"] = required
+        description = description or spec.description
+    elif isinstance(spec, Tagged):
+        out = {"type": "object", "required": [spec.tag],
+               "oneOf": [_json(v, v.description) for v in spec.variants.values()]}
+        description = description or spec.description
+    else:
+        raise TypeError(f"unknown schema node {spec!r}")
+    if description:
+        out = {"description": description, **out}
+    return out
+
+
+def json_schema() -> dict:
+    """The JSON Schema (draft 2020-12) of a mission file, generated from :data:`MISSION`."""
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://github.com/companion/companion/mission.schema.json",
+        "title": "companion mission",
+        **_json(MISSION),
+    }
+
+
+def json_schema_text() -> str:
+    """:func:`json_schema` as the text committed in ``mission.schema.json``."""
+    return json.dumps(json_schema(), indent=2) + "\n"
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(json_schema_text(), end="")
