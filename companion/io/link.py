@@ -1,0 +1,660 @@
+"""The MAVLink link: the one adapter between the companion and pymavlink.
+
+``MavLink(connect, ...)`` opens a connection string, sends the companion's own HEARTBEAT
+(MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, component 191 by default), pairs with one
+autopilot and from then on accepts state only from it.
+
+Connection strings (as pymavlink spells them):
+
+* ``udpin:0.0.0.0:14540`` listen (PX4 SITL's offboard port). The peer is **pinned** to the
+  address the paired autopilot's heartbeat came from; datagrams from any other address are
+  dropped and counted (pymavlink's own UDP server would start sending to whoever wrote last).
+  After the pinned peer has been silent for ``repin_after_s`` a heartbeat of the *same* system
+  and component from a new address re-pins it (an autopilot restart gets a new source port).
+* ``udpout:127.0.0.1:14550`` send to a fixed address, receive replies on the same socket.
+* ``tcp:127.0.0.1:5760`` (ArduPilot SITL), ``/dev/ttyACM0,921600`` (serial).
+
+Packets are parsed with pymavlink's MAVLink 2 parser (MAVLink 1 is read too). A UDP datagram is
+parsed on its own (no bytes carried over to the next datagram). Rejections are counted by reason
+in :attr:`MavLink.rejected`: ``bad_crc``, ``bad_data`` (bad prefix, wrong length, truncated),
+``unknown`` (message id not in the dialect), ``wrong_system`` (not the paired system/component),
+``wrong_address`` (UDP datagram not from the pinned peer), ``unsigned`` and ``bad_signature``
+(signing on), ``nan`` and ``out_of_range`` (state fields).
+
+Signing (MAVLink 2): ``signing_key`` is 32 bytes (:func:`load_signing_key` reads a file with 64
+hex characters, or any other text as a passphrase hashed with SHA-256). When set, every outgoing
+packet is signed and unsigned or wrongly signed incoming packets are rejected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import select
+import socket
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from companion.errors import LinkError
+from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
+from companion.io.state import PositionSample, position_problem, yaw_problem
+from companion.io.tlog import TlogWriter
+
+MAV_COMP_ID_ONBOARD_COMPUTER = 191
+MAV_TYPE_ONBOARD_CONTROLLER = 18
+MAV_AUTOPILOT_INVALID = 8
+MAV_AUTOPILOT_ARDUPILOTMEGA = 3
+MAV_AUTOPILOT_PX4 = 12
+MSG_ID_LOCAL_POSITION_NED = 32
+MSG_ID_ATTITUDE = 30
+
+MAV_CMD_NAV_LAND = 21
+MAV_CMD_NAV_TAKEOFF = 22
+MAV_CMD_DO_SET_MODE = 176
+MAV_CMD_DO_CHANGE_SPEED = 178
+MAV_CMD_COMPONENT_ARM_DISARM = 400
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MAV_CMD_GUIDED_CHANGE_SPEED = 43000
+MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+
+MAV_RESULT_NAMES = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "UNSUPPORTED",
+                    4: "FAILED", 5: "IN_PROGRESS", 6: "CANCELLED"}
+
+REJECT_REASONS = ("bad_crc", "bad_data", "unknown", "wrong_system", "wrong_address", "unsigned",
+                  "bad_signature", "nan", "out_of_range")
+
+COPTER_TYPES = {2, 3, 4, 13, 14, 15, 29}  # quad, coaxial, heli, hexa, octo, tri, dodeca
+PLANE_TYPES = {1, 16, 19, 20, 21, 22, 23, 24, 25}  # fixed wing and VTOL variants
+ROVER_TYPES = {10, 11}  # ground rover, surface boat
+
+# PX4 custom_mode = (main << 16) | (sub << 24).
+PX4_MODES = {
+    "offboard": (6, 0),
+    "position": (3, 0),
+    "hold": (4, 3),
+    "loiter": (4, 3),
+    "rtl": (4, 5),
+    "land": (4, 6),
+}
+# ArduPilot custom_mode by vehicle.
+ARDUPILOT_MODES = {
+    "copter": {"guided": 4, "loiter": 5, "rtl": 6, "land": 9, "brake": 17, "hold": 4},
+    "plane": {"guided": 15, "loiter": 12, "rtl": 11, "hold": 12},
+    "rover": {"guided": 15, "hold": 4, "loiter": 5, "rtl": 11, "land": 4},
+}
+
+
+def load_signing_key(path: str | os.PathLike) -> bytes:
+    """Read a 32-byte MAVLink 2 signing key: 64 hex characters, or a passphrase (SHA-256 of it).
+
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "k"; _ = p.write_text("00" * 32 + "\\n")
+    >>> load_signing_key(p) == bytes(32)
+    True
+    """
+    try:
+        text = open(path, encoding="utf-8").read().strip()
+    except OSError as err:
+        raise LinkError(f"{path}: cannot read the signing key ({err.strerror or err})") from err
+    except UnicodeDecodeError as err:
+        raise LinkError(f"{path}: signing key must be text (64 hex characters or a passphrase)") from err
+    if not text:
+        raise LinkError(f"{path}: signing key file is empty (expected 64 hex characters or a passphrase)")
+    if len(text) == 64:
+        try:
+            return bytes.fromhex(text)
+        except ValueError:
+            pass
+    return hashlib.sha256(text.encode("utf-8")).digest()
+
+
+def signing_timestamp_now() -> int:
+    """MAVLink signing timestamp: units of 10 us since 2015-01-01 00:00 UTC."""
+    return int(max(time.time() - 1420070400, 0) * 100_000)
+
+
+# --------------------------------------------------------------------------------------------
+# Transports: raw bytes in and out. UDP keeps datagram boundaries and source addresses.
+# --------------------------------------------------------------------------------------------
+
+
+class _UdpTransport:
+    datagrams = True
+
+    def __init__(self, host: str, port: int, listen: bool):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.listen = listen
+        self.peer: tuple[str, int] | None = None
+        try:
+            if listen:
+                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                self.sock.bind((host, port))
+            else:
+                self.peer = (socket.gethostbyname(host), port)
+        except OSError as err:
+            self.sock.close()
+            raise LinkError(f"udp {host}:{port}: {err.strerror or err}") from err
+        self.sock.setblocking(False)
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def recv(self) -> list[tuple[bytes, object]]:
+        out = []
+        for _ in range(256):
+            try:
+                data, addr = self.sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                break
+            except ConnectionRefusedError:
+                continue  # ICMP port unreachable from an earlier send: the peer is not up yet
+            out.append((data, addr))
+        return out
+
+    def send(self, buf: bytes) -> bool:
+        if self.peer is None:
+            return False  # udpin before pairing: nobody to send to yet
+        try:
+            self.sock.sendto(buf, self.peer)
+        except OSError:
+            pass  # a lost datagram is a lost datagram; the link timeout reports a dead link
+        return True
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+class _StreamTransport:
+    """TCP or serial through pymavlink's raw transports (byte stream, no source address)."""
+
+    datagrams = False
+
+    def __init__(self, conn):
+        self.conn = conn
+        self.peer = None
+
+    def fileno(self) -> int:
+        return self.conn.fd
+
+    def recv(self) -> list[tuple[bytes, object]]:
+        try:
+            data = self.conn.recv(4096)
+        except OSError as err:
+            raise LinkError(f"{self.conn.address}: connection lost ({err.strerror or err})") from err
+        if not data:
+            return []
+        if isinstance(data, str):
+            data = data.encode("latin-1")
+        return [(bytes(data), None)]
+
+    def send(self, buf: bytes) -> bool:
+        try:
+            self.conn.write(buf)
+        except OSError:
+            pass
+        return True
+
+    def close(self) -> None:
+        try:
+            self.conn.close()
+        except Exception:  # noqa: BLE001 - closing a dead port must not raise
+            pass
+
+
+def open_transport(connect: str):
+    """Open a connection string (udpin:, udpout:, tcp:, serial DEVICE[,BAUD])."""
+    try:
+        if connect.startswith("udpin:") or connect.startswith("udpout:"):
+            kind, rest = connect.split(":", 1)
+            host, port = rest.rsplit(":", 1)
+            return _UdpTransport(host, int(port), listen=(kind == "udpin"))
+        if connect.startswith("tcp:"):
+            host_port = connect[4:]
+            host, port = host_port.rsplit(":", 1)
+            int(port)
+            conn = mavutil.mavtcp(host_port, autoreconnect=False, retries=3)
+            return _StreamTransport(conn)
+        if connect.startswith("/dev/") or connect.upper().startswith("COM"):
+            device, _, baud = connect.partition(",")
+            conn = mavutil.mavserial(device, baud=int(baud or 57600), autoreconnect=False)
+            return _StreamTransport(conn)
+    except LinkError:
+        raise
+    except (OSError, ValueError, Exception) as err:  # noqa: BLE001 - pymavlink raises plain Exception
+        raise LinkError(f"{connect}: cannot open the link ({err})") from err
+    raise LinkError(
+        f"{connect}: unknown connection string (expected udpin:HOST:PORT, udpout:HOST:PORT, "
+        "tcp:HOST:PORT or /dev/DEVICE,BAUD)"
+    )
+
+
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class AutopilotInfo:
+    system_id: int
+    component_id: int
+    autopilot: str  # "px4" or "ardupilot"
+    vehicle: str  # "copter", "plane" or "rover"
+    mav_type: int
+
+
+@dataclass
+class LinkState:
+    """What the link knows of the paired autopilot (updated by :meth:`MavLink.poll`)."""
+
+    position: PositionSample | None = None
+    yaw_ned_rad: float | None = None
+    custom_mode: int | None = None
+    base_mode: int = 0
+    armed: bool = False
+    last_heartbeat_s: float = math.nan  # monotonic
+    last_message_s: float = math.nan  # monotonic, any accepted message
+    autopilot_time_s: float = math.nan  # newest time_boot_ms of an accepted message, seconds
+    statustext: list = field(default_factory=list)  # (severity, text), newest last
+    acks: dict = field(default_factory=dict)  # command -> (result, monotonic time)
+    heartbeats: int = 0
+    positions: int = 0
+
+
+class _TlogTap:
+    """The ``file`` given to pymavlink's MAVLink object: every packet sent is also recorded."""
+
+    def __init__(self, link: "MavLink"):
+        self.link = link
+
+    def write(self, buf) -> None:
+        if not self.link._transport.send(bytes(buf)):
+            return
+        if self.link.tlog is not None:
+            self.link.tlog.write(bytes(buf))
+        self.link.sent += 1
+
+
+class MavLink:
+    """A MAVLink connection to one autopilot, with pairing, filtering, signing and a tlog.
+
+    Parameters
+    ----------
+    connect : connection string (see module docstring).
+    source_system, source_component : the companion's own ids (component 191 by default).
+    signing_key : 32-byte MAVLink 2 key, or None.
+    tlog : an opened :class:`TlogWriter`, or None.
+    target_system : pair only with this system id (None = the first autopilot heard).
+    autopilot : ``"auto"``, ``"px4"`` or ``"ardupilot"`` (required flavour, checked on pairing).
+    repin_after_s : silence of the pinned UDP peer after which a heartbeat of the same
+        system/component from a new address is accepted (autopilot restart).
+    clock : monotonic clock (injectable for tests).
+    """
+
+    def __init__(
+        self,
+        connect: str,
+        *,
+        source_system: int = 1,
+        source_component: int = MAV_COMP_ID_ONBOARD_COMPUTER,
+        signing_key: bytes | None = None,
+        tlog: TlogWriter | None = None,
+        target_system: int | None = None,
+        autopilot: str = "auto",
+        repin_after_s: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+    ):
+        if autopilot not in ("auto", "px4", "ardupilot"):
+            raise LinkError(f"--autopilot: expected auto, px4 or ardupilot, got {autopilot!r}")
+        for name, value in (("source_system", source_system), ("source_component", source_component)):
+            if not (1 <= int(value) <= 255):
+                raise LinkError(f"{name}: expected 1..255, got {value}")
+        self.connect = connect
+        self.tlog = tlog
+        self.clock = clock
+        self.target_system = target_system
+        self.autopilot_wanted = autopilot
+        self.repin_after_s = float(repin_after_s)
+        self._transport = open_transport(connect)
+        self._mav = mavlink2.MAVLink(_TlogTap(self), srcSystem=int(source_system),
+                                     srcComponent=int(source_component))
+        self._mav.robust_parsing = True
+        # A second encoder for records written to the tlog only (its own sequence numbers, so the
+        # autopilot never sees a gap in the companion's stream).
+        self._recorder = mavlink2.MAVLink(None, srcSystem=int(source_system),
+                                          srcComponent=int(source_component))
+        self.signing = signing_key is not None
+        if signing_key is not None:
+            if len(signing_key) != 32:
+                raise LinkError(f"signing key: expected 32 bytes, got {len(signing_key)}")
+            self._mav.signing.secret_key = bytes(signing_key)
+            self._mav.signing.sign_outgoing = True
+            self._mav.signing.allow_unsigned_callback = None
+            self._mav.signing.link_id = 0
+            self._mav.signing.timestamp = signing_timestamp_now()
+        self.info: AutopilotInfo | None = None
+        self.state = LinkState()
+        self.rejected = {reason: 0 for reason in REJECT_REASONS}
+        self.received = 0
+        self.sent = 0
+        self.stranger_addresses: set = set()
+        self._peer_last_s = math.nan
+        self._last_own_heartbeat_s = -math.inf
+        self.on_message: Callable | None = None  # optional hook(msg) for accepted messages
+
+    # ---------------------------------------------------------------- receiving
+
+    def fileno(self) -> int:
+        return self._transport.fileno()
+
+    def poll(self, timeout_s: float = 0.0) -> int:
+        """Wait up to ``timeout_s`` for data, then handle everything available. Returns #accepted."""
+        try:
+            ready, _, _ = select.select([self._transport.fileno()], [], [], max(0.0, timeout_s))
+        except (OSError, ValueError):
+            return 0
+        if not ready:
+            return 0
+        accepted = 0
+        for data, addr in self._transport.recv():
+            accepted += self._handle_bytes(data, addr)
+        return accepted
+
+    def _reset_parser(self) -> None:
+        self._mav.buf = bytearray()
+        self._mav.buf_index = 0
+        self._mav.expected_length = mavlink2.HEADER_LEN_V1 + 2
+
+    def _handle_bytes(self, data: bytes, addr) -> int:
+        if self._transport.datagrams:
+            self._reset_parser()
+        try:
+            msgs = self._mav.parse_buffer(data) or []
+        except Exception:  # noqa: BLE001 - the parser must never take the loop down
+            self.rejected["bad_data"] += 1
+            self._reset_parser()
+            return 0
+        if self._transport.datagrams and self._mav.buf_len() > 0:
+            self.rejected["bad_data"] += 1  # truncated frame at the end of a datagram
+            self._reset_parser()
+        accepted = 0
+        for msg in msgs:
+            try:
+                accepted += self._handle_message(msg, addr)
+            except Exception:  # noqa: BLE001 - a malformed field value must not stop the loop
+                self.rejected["bad_data"] += 1
+        return accepted
+
+    def _classify_bad(self, msg) -> str:
+        reason = str(getattr(msg, "reason", ""))
+        if "CRC" in reason:
+            return "bad_crc"
+        if "signature" in reason:
+            buf = bytes(msg.get_msgbuf())
+            signed = len(buf) > 2 and buf[0] == 0xFD and (buf[2] & 0x01)
+            return "bad_signature" if signed else "unsigned"
+        return "bad_data"
+
+    def _handle_message(self, msg, addr) -> int:
+        mtype = msg.get_type()
+        if mtype == "BAD_DATA":
+            self.rejected[self._classify_bad(msg)] += 1
+            return 0
+        if mtype.startswith("UNKNOWN"):
+            self.rejected["unknown"] += 1
+            return 0
+        now = self.clock()
+        src = (msg.get_srcSystem(), msg.get_srcComponent())
+        if self.info is None:
+            if mtype == "HEARTBEAT" and self._is_autopilot_heartbeat(msg):
+                if self.target_system is None or src[0] == self.target_system:
+                    self._pair(msg, addr)
+                else:
+                    self.rejected["wrong_system"] += 1
+                    return 0
+            else:
+                return 0
+        paired = (self.info.system_id, self.info.component_id)
+        if src != paired:
+            self.rejected["wrong_system"] += 1
+            return 0
+        if self._transport.datagrams and self._transport.listen and addr != self._transport.peer:
+            silent = not (now - self._peer_last_s < self.repin_after_s)
+            if mtype == "HEARTBEAT" and silent and self._is_autopilot_heartbeat(msg):
+                self._transport.peer = addr  # the same autopilot came back on a new address
+            else:
+                self.rejected["wrong_address"] += 1
+                self.stranger_addresses.add(addr)
+                return 0
+        if not self._accept_fields(msg, mtype, now):
+            return 0
+        self._peer_last_s = now
+        self.received += 1
+        self.state.last_message_s = now
+        if self.tlog is not None:
+            self.tlog.write(bytes(msg.get_msgbuf()))
+        if self.on_message is not None:
+            self.on_message(msg)
+        return 1
+
+    @staticmethod
+    def _is_autopilot_heartbeat(msg) -> bool:
+        return msg.autopilot in (MAV_AUTOPILOT_PX4, MAV_AUTOPILOT_ARDUPILOTMEGA) and msg.type not in (
+            6, MAV_TYPE_ONBOARD_CONTROLLER, 26)  # GCS, onboard controller, gimbal
+
+    def _pair(self, msg, addr) -> None:
+        flavour = "px4" if msg.autopilot == MAV_AUTOPILOT_PX4 else "ardupilot"
+        if self.autopilot_wanted != "auto" and flavour != self.autopilot_wanted:
+            raise LinkError(
+                f"{self.connect}: autopilot is {flavour} (system {msg.get_srcSystem()}), "
+                f"expected {self.autopilot_wanted} (--autopilot)"
+            )
+        if msg.type in COPTER_TYPES:
+            vehicle = "copter"
+        elif msg.type in PLANE_TYPES:
+            vehicle = "plane"
+        elif msg.type in ROVER_TYPES:
+            vehicle = "rover"
+        else:
+            vehicle = "copter"
+        self.info = AutopilotInfo(msg.get_srcSystem(), msg.get_srcComponent(), flavour, vehicle, msg.type)
+        if self._transport.datagrams and self._transport.listen:
+            self._transport.peer = addr
+
+    def _accept_fields(self, msg, mtype: str, now: float) -> bool:
+        st = self.state
+        if mtype == "LOCAL_POSITION_NED":
+            problem = position_problem(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
+            if problem:
+                self.rejected[problem] += 1
+                return False
+            st.position = PositionSample(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy,
+                                         msg.vz, received_s=now)
+            st.positions += 1
+            self._advance_time(msg.time_boot_ms)
+        elif mtype == "ATTITUDE":
+            problem = yaw_problem(msg.roll, msg.pitch, msg.yaw)
+            if problem:
+                self.rejected[problem] += 1
+                return False
+            st.yaw_ned_rad = float(msg.yaw)
+            self._advance_time(msg.time_boot_ms)
+        elif mtype == "HEARTBEAT":
+            st.custom_mode = int(msg.custom_mode)
+            st.base_mode = int(msg.base_mode)
+            st.armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
+            st.last_heartbeat_s = now
+            st.heartbeats += 1
+        elif mtype == "STATUSTEXT":
+            text = msg.text.decode("utf-8", "replace") if isinstance(msg.text, bytes) else str(msg.text)
+            st.statustext.append((int(msg.severity), text.rstrip("\x00")))
+            del st.statustext[:-50]
+        elif mtype == "COMMAND_ACK":
+            st.acks[int(msg.command)] = (int(msg.result), now)
+        elif hasattr(msg, "time_boot_ms"):
+            tb = getattr(msg, "time_boot_ms")
+            if isinstance(tb, int) and tb >= 0:
+                self._advance_time(tb)
+        return True
+
+    def _advance_time(self, time_boot_ms: int) -> None:
+        t = time_boot_ms / 1000.0
+        if not (t <= self.state.autopilot_time_s):  # also when still NaN
+            self.state.autopilot_time_s = t
+
+    # ---------------------------------------------------------------- pairing, heartbeat
+
+    def send_heartbeat(self) -> None:
+        self._mav.heartbeat_send(MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, 4)  # ACTIVE
+        self._last_own_heartbeat_s = self.clock()
+
+    def heartbeat_if_due(self, period_s: float = 1.0) -> None:
+        if self.clock() - self._last_own_heartbeat_s >= period_s:
+            self.send_heartbeat()
+
+    def wait_heartbeat(self, timeout_s: float) -> AutopilotInfo:
+        """Send our heartbeat and wait for an autopilot's; raise LinkError after ``timeout_s``."""
+        deadline = self.clock() + timeout_s
+        while self.info is None:
+            self.heartbeat_if_due()
+            remaining = deadline - self.clock()
+            if remaining <= 0:
+                who = f"system {self.target_system}" if self.target_system else "an autopilot"
+                raise LinkError(
+                    f"{self.connect}: no HEARTBEAT from {who} within {timeout_s:g} s "
+                    "(is the autopilot running and the connection string right?)"
+                )
+            self.poll(min(0.1, remaining))
+        return self.info
+
+    def link_age_s(self) -> float:
+        """Seconds since the paired autopilot's last heartbeat."""
+        return self.clock() - self.state.last_heartbeat_s
+
+    # ---------------------------------------------------------------- commands
+
+    def _target(self) -> tuple[int, int]:
+        if self.info is None:
+            raise LinkError(f"{self.connect}: not paired with an autopilot yet")
+        return self.info.system_id, self.info.component_id
+
+    def command_long(self, command: int, params=(0, 0, 0, 0, 0, 0, 0), *, wait_ack_s: float = 1.0,
+                     retries: int = 3, idle: Callable[[], None] | None = None) -> int | None:
+        """Send COMMAND_LONG and wait for its COMMAND_ACK; returns the MAV_RESULT or None."""
+        ts, tc = self._target()
+        p = list(params) + [0.0] * (7 - len(params))
+        for attempt in range(max(1, retries)):
+            self.state.acks.pop(int(command), None)
+            self._mav.command_long_send(ts, tc, int(command), attempt, *[float(x) for x in p])
+            deadline = self.clock() + wait_ack_s
+            while self.clock() < deadline:
+                self.poll(0.02)
+                if idle is not None:
+                    idle()
+                ack = self.state.acks.get(int(command))
+                if ack is not None and ack[0] != 5:  # IN_PROGRESS: keep waiting
+                    return ack[0]
+        return None
+
+    def request_message_interval(self, msg_id: int, rate_hz: float, **kw) -> int | None:
+        """MAV_CMD_SET_MESSAGE_INTERVAL for ``msg_id`` at ``rate_hz``; returns the MAV_RESULT."""
+        return self.command_long(MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, 1.0e6 / rate_hz), **kw)
+
+    def mode_number(self, name: str) -> tuple[int, int, int]:
+        """(base_mode flags, custom main mode, sub mode) of a mode name for this autopilot."""
+        info = self.info
+        if info is None:
+            raise LinkError("not paired")
+        if info.autopilot == "px4":
+            if name == "guided":
+                name = "offboard"
+            main, sub = PX4_MODES[name]
+            return MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub
+        table = ARDUPILOT_MODES[info.vehicle]
+        if name == "offboard":
+            name = "guided"
+        if name not in table:
+            raise LinkError(f"mode {name!r} is not available on an ArduPilot {info.vehicle}")
+        return MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, table[name], 0
+
+    def custom_mode_value(self, name: str) -> int:
+        """The HEARTBEAT custom_mode the autopilot reports in mode ``name``."""
+        _, main, sub = self.mode_number(name)
+        if self.info.autopilot == "px4":
+            return (main << 16) | (sub << 24)
+        return main
+
+    def in_mode(self, name: str) -> bool:
+        cm = self.state.custom_mode
+        if cm is None:
+            return False
+        if self.info.autopilot == "px4":
+            _, main, sub = self.mode_number(name)
+            if sub == 0:
+                return ((cm >> 16) & 0xFF) == main
+            return cm == ((main << 16) | (sub << 24))
+        return cm == self.custom_mode_value(name)
+
+    def set_mode(self, name: str, **kw) -> int | None:
+        base, main, sub = self.mode_number(name)
+        return self.command_long(MAV_CMD_DO_SET_MODE, (base, main, sub), **kw)
+
+    def arm(self, **kw) -> int | None:
+        return self.command_long(MAV_CMD_COMPONENT_ARM_DISARM, (1,), **kw)
+
+    def takeoff(self, altitude_m: float, **kw) -> int | None:
+        return self.command_long(MAV_CMD_NAV_TAKEOFF, (0, 0, 0, math.nan, math.nan, math.nan, altitude_m), **kw)
+
+    def change_speed(self, speed_m_s: float, **kw) -> int | None:
+        """Ground speed for a fixed-wing flight: DO_CHANGE_SPEED (PX4), GUIDED_CHANGE_SPEED (ArduPilot)."""
+        if self.info is not None and self.info.autopilot == "ardupilot":
+            return self.command_long(MAV_CMD_GUIDED_CHANGE_SPEED, (1, speed_m_s, 0), **kw)
+        return self.command_long(MAV_CMD_DO_CHANGE_SPEED, (1, speed_m_s, -1), **kw)
+
+    # ---------------------------------------------------------------- setpoints and records
+
+    def time_boot_ms(self) -> int:
+        t = self.state.autopilot_time_s
+        return int(t * 1000) & 0xFFFFFFFF if math.isfinite(t) else 0
+
+    def send_setpoint(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
+        ts, tc = self._target()
+        if isinstance(sp, VelocitySetpoint):
+            self._mav.set_position_target_local_ned_send(
+                self.time_boot_ms(), ts, tc, sp.coordinate_frame, sp.type_mask,
+                0.0, 0.0, 0.0, sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
+                0.0, 0.0, 0.0, 0.0, sp.yaw_rate_ned_rad_s)
+        else:
+            self._mav.set_attitude_target_send(
+                self.time_boot_ms(), ts, tc, sp.type_mask, list(sp.q), 0.0, 0.0, 0.0, sp.thrust)
+
+    def send_position_hold(self, x_ned_m: float, y_ned_m: float, z_ned_m: float) -> None:
+        """Position-only target (ArduCopter GUIDED hover at a point: all three position bits used)."""
+        ts, tc = self._target()
+        mask = 8 | 16 | 32 | 64 | 128 | 256 | 1024 | 2048
+        self._mav.set_position_target_local_ned_send(
+            self.time_boot_ms(), ts, tc, 1, mask, x_ned_m, y_ned_m, z_ned_m,
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def record_debug(self, name: str, array_id: int, time_usec: int, data) -> None:
+        """Write one DEBUG_FLOAT_ARRAY to the tlog only (never sent to the vehicle)."""
+        if self.tlog is None:
+            return
+        values = [float(x) for x in data][:58]
+        values += [math.nan] * (58 - len(values))
+        msg = self._recorder.debug_float_array_encode(int(time_usec), name.encode()[:10],
+                                                      int(array_id) % 65536, values)
+        self.tlog.write(bytes(msg.pack(self._recorder)))
+        self._recorder.seq = (self._recorder.seq + 1) % 256
+
+    def counters(self) -> dict:
+        return {"received": self.received, "sent": self.sent,
+                "rejected": dict(self.rejected), "rejected_total": sum(self.rejected.values())}
+
+    def close(self) -> None:
+        if self.tlog is not None:
+            self.tlog.flush()
+        self._transport.close()

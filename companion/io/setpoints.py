@@ -1,0 +1,209 @@
+"""Lateral acceleration -> MAVLink setpoint fields (pure conversion, no pymavlink).
+
+The guidance produces one number per tick, the lateral acceleration ``a_cmd`` (ENU, positive =
+turn left). Two output adapters turn it into what an autopilot flies:
+
+**Velocity + yaw rate** (copter, rover): ``SET_POSITION_TARGET_LOCAL_NED`` in
+``MAV_FRAME_LOCAL_NED`` with
+
+* the horizontal velocity vector of magnitude V pointing along the course the vehicle reaches
+  *one tick ahead* when it turns at ``a_cmd``: ``course_cmd = course + (a_cmd / V) * dt``.
+  A unicycle at constant speed turns at ``omega = a / V``; a vehicle that holds this velocity for
+  the tick ends the tick on exactly the course an ideal unicycle would have at ``t + dt``. The
+  command therefore realises the commanded turn within one tick (the first-order effect of the
+  turn appears in the very next sample; no extra lag is introduced by the conversion). The position
+  difference to the ideal arc is the chord/arc difference, at most ``V dt * |omega| dt / 2`` per
+  tick (tested in ``tests/io/test_setpoints.py``).
+* ``yaw_rate = a_cmd / V`` (sign flipped for NED: clockwise positive) so that the nose follows
+  the turn;
+* altitude held by a **vertical velocity** ``vz = -k (alt_target - alt)`` clamped to
+  ``max_climb_m_s``, not by a z position. ArduCopter reads the three position bits of
+  ``type_mask`` as one group: a z position with xy ignored makes it treat x, y as used too (it
+  would fly to x = y = 0). Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
+  and yaw ignored; vx, vy, vz, yaw_rate used), which PX4 and ArduPilot both accept.
+
+**Attitude** (fixed wing): ``SET_ATTITUDE_TARGET`` with the coordinated-turn bank angle
+``phi = atan(a_cmd / g)`` limited to ``max_bank_deg``. In NED a positive roll is right wing down,
+a right (clockwise) turn, so a left turn command (a_cmd > 0) gives a negative roll. Body rates
+are ignored; the speed is set separately by a speed command (see ``companion.io.link``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from companion.geometry import frames
+
+G_M_S2 = 9.80665
+
+# SET_POSITION_TARGET_LOCAL_NED type_mask bits (a set bit means "ignore this field").
+IGNORE_X = 1
+IGNORE_Y = 2
+IGNORE_Z = 4
+IGNORE_VX = 8
+IGNORE_VY = 16
+IGNORE_VZ = 32
+IGNORE_AX = 64
+IGNORE_AY = 128
+IGNORE_AZ = 256
+FORCE_SET = 512
+IGNORE_YAW = 1024
+IGNORE_YAW_RATE = 2048
+
+#: velocity (vx, vy, vz) + yaw rate; position, acceleration and yaw ignored. 1479 = 0x05C7.
+TYPE_MASK_VELOCITY_YAW_RATE = (
+    IGNORE_X | IGNORE_Y | IGNORE_Z | IGNORE_AX | IGNORE_AY | IGNORE_AZ | IGNORE_YAW
+)
+MAV_FRAME_LOCAL_NED = 1
+
+# SET_ATTITUDE_TARGET type_mask bits.
+ATT_IGNORE_ROLL_RATE = 1
+ATT_IGNORE_PITCH_RATE = 2
+ATT_IGNORE_YAW_RATE = 4
+ATT_IGNORE_THRUST = 64
+ATT_IGNORE_ATTITUDE = 128
+#: attitude (quaternion) + thrust, body rates ignored.
+TYPE_MASK_ATTITUDE_THRUST = ATT_IGNORE_ROLL_RATE | ATT_IGNORE_PITCH_RATE | ATT_IGNORE_YAW_RATE
+
+
+@dataclass(frozen=True)
+class AltitudeHold:
+    """Vertical-velocity altitude hold: ``vz_up = clamp(gain * (alt_target - alt), +-max_climb)``."""
+
+    altitude_m: float  # target altitude above the local origin (up positive)
+    gain_1_s: float = 1.0
+    max_climb_m_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.altitude_m):
+            raise ValueError(f"altitude_m: expected a finite number, got {self.altitude_m!r}")
+        for name in ("gain_1_s", "max_climb_m_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+
+    def vz_ned_m_s(self, alt_m: float) -> float:
+        """Downward velocity that drives the altitude to the target (0 when alt is not finite)."""
+        if not math.isfinite(alt_m):
+            return 0.0
+        climb = self.gain_1_s * (self.altitude_m - alt_m)
+        climb = max(-self.max_climb_m_s, min(self.max_climb_m_s, climb))
+        return -climb
+
+
+@dataclass(frozen=True)
+class VelocitySetpoint:
+    """Fields of one SET_POSITION_TARGET_LOCAL_NED (velocity + yaw rate, MAV_FRAME_LOCAL_NED)."""
+
+    vx_ned_m_s: float
+    vy_ned_m_s: float
+    vz_ned_m_s: float
+    yaw_rate_ned_rad_s: float
+    type_mask: int = TYPE_MASK_VELOCITY_YAW_RATE
+    coordinate_frame: int = MAV_FRAME_LOCAL_NED
+    course_cmd_enu_rad: float = math.nan  # the course the velocity vector points along (ENU)
+
+    @property
+    def is_hold(self) -> bool:
+        return self.vx_ned_m_s == 0.0 and self.vy_ned_m_s == 0.0 and self.yaw_rate_ned_rad_s == 0.0
+
+
+@dataclass(frozen=True)
+class AttitudeSetpoint:
+    """Fields of one SET_ATTITUDE_TARGET (fixed wing): quaternion w, x, y, z (NED body) + thrust."""
+
+    q: tuple[float, float, float, float]
+    roll_ned_rad: float
+    thrust: float
+    type_mask: int = TYPE_MASK_ATTITUDE_THRUST
+
+
+def velocity_setpoint(
+    a_cmd_m_s2: float,
+    course_enu_rad: float,
+    speed_m_s: float,
+    dt_s: float,
+    alt_m: float,
+    hold: AltitudeHold,
+) -> VelocitySetpoint:
+    """Velocity + yaw-rate setpoint for a lateral acceleration command.
+
+    Parameters
+    ----------
+    a_cmd_m_s2 : lateral acceleration, ENU, positive = turn left.
+    course_enu_rad : current course (direction of the ground velocity), ENU.
+    speed_m_s : commanded ground speed V (the mission speed), > 0.
+    dt_s : tick period; the velocity vector points along the course reached one tick ahead.
+    alt_m : current altitude (up, metres above the local origin).
+    hold : the altitude hold.
+
+    Examples
+    --------
+    Flying east at 5 m/s, no turn: velocity is pure east (NED y), yaw rate zero.
+
+    >>> sp = velocity_setpoint(0.0, 0.0, 5.0, 0.02, 10.0, AltitudeHold(10.0))
+    >>> round(sp.vx_ned_m_s, 9), round(sp.vy_ned_m_s, 9), sp.yaw_rate_ned_rad_s
+    (0.0, 5.0, -0.0)
+    """
+    if not (speed_m_s > 0 and math.isfinite(speed_m_s)):
+        raise ValueError(f"speed_m_s: expected a finite number > 0, got {speed_m_s!r}")
+    omega_enu_rad_s = a_cmd_m_s2 / speed_m_s
+    course_cmd = frames.wrap_pi(course_enu_rad + omega_enu_rad_s * dt_s)
+    ve = speed_m_s * math.cos(course_cmd)
+    vn = speed_m_s * math.sin(course_cmd)
+    vx_ned, vy_ned, _ = frames.vel_ned_from_enu(ve, vn, 0.0)
+    return VelocitySetpoint(
+        vx_ned_m_s=vx_ned,
+        vy_ned_m_s=vy_ned,
+        vz_ned_m_s=hold.vz_ned_m_s(alt_m),
+        yaw_rate_ned_rad_s=frames.yaw_rate_ned_from_enu(omega_enu_rad_s),
+        course_cmd_enu_rad=course_cmd,
+    )
+
+
+def hold_setpoint(alt_m: float, hold: AltitudeHold | None) -> VelocitySetpoint:
+    """The failsafe hold: zero horizontal velocity, zero yaw rate (altitude still held)."""
+    vz = hold.vz_ned_m_s(alt_m) if hold is not None else 0.0
+    return VelocitySetpoint(0.0, 0.0, vz, 0.0)
+
+
+def bank_angle_rad(a_cmd_m_s2: float, max_bank_deg: float) -> float:
+    """Coordinated-turn bank ``atan(a / g)`` (ENU sense: left turn positive), limited."""
+    limit = math.radians(max_bank_deg)
+    phi = math.atan(a_cmd_m_s2 / G_M_S2)
+    return max(-limit, min(limit, phi))
+
+
+def quaternion_from_euler_ned(roll_rad: float, pitch_rad: float, yaw_rad: float) -> tuple[float, float, float, float]:
+    """Quaternion (w, x, y, z) of the aerospace 3-2-1 (yaw, pitch, roll) rotation, NED body."""
+    cr, sr = math.cos(roll_rad / 2), math.sin(roll_rad / 2)
+    cp, sp = math.cos(pitch_rad / 2), math.sin(pitch_rad / 2)
+    cy, sy = math.cos(yaw_rad / 2), math.sin(yaw_rad / 2)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
+def attitude_setpoint(
+    a_cmd_m_s2: float,
+    course_enu_rad: float,
+    max_bank_deg: float,
+    thrust: float = 0.5,
+) -> AttitudeSetpoint:
+    """Fixed-wing setpoint: roll = -bank (NED, right wing down positive), level pitch, yaw = course.
+
+    >>> sp = attitude_setpoint(9.80665, math.pi / 2, 60.0)   # 1 g left turn, flying north
+    >>> round(math.degrees(sp.roll_ned_rad), 6)
+    -45.0
+    """
+    roll_ned = -bank_angle_rad(a_cmd_m_s2, max_bank_deg)
+    yaw_ned = frames.yaw_ned_from_enu(course_enu_rad)
+    return AttitudeSetpoint(
+        q=quaternion_from_euler_ned(roll_ned, 0.0, yaw_ned),
+        roll_ned_rad=roll_ned,
+        thrust=float(min(1.0, max(0.0, thrust))),
+    )

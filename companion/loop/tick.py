@@ -1,0 +1,233 @@
+"""One guidance tick, as a pure function shared by the live loop and replay.
+
+``compute_tick`` takes the newest ``LOCAL_POSITION_NED`` sample (NED), its age, the tick time
+and the guidance object, and returns everything that tick decided: the vehicle state handed to
+the guidance (ENU), the guidance output, the setpoint fields to send, and the row recorded in the
+tlog as ``DEBUG_FLOAT_ARRAY "guidance"`` (layout: ``DEBUG_FIELDS``, documented in
+``docs/recording.md``).
+
+Rules applied here (and therefore identically in flight and in replay):
+
+* no sample, or a sample older than ``stale_s`` -> **hold** (zero velocity, zero yaw rate,
+  altitude still held), the guidance is not stepped;
+* the course handed to the guidance is the direction of the measured ground velocity; below
+  ``min_course_speed_m_s`` it falls back to the attitude yaw, then to the previous course;
+* the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from companion.geometry import frames
+from companion.guidance.types import GuidanceOutput, VehicleState
+from companion.io.setpoints import (
+    AltitudeHold,
+    AttitudeSetpoint,
+    VelocitySetpoint,
+    attitude_setpoint,
+    hold_setpoint,
+    velocity_setpoint,
+)
+from companion.io.state import PositionSample
+
+PHASE_CODES = {"midcourse": 0, "close_range": 1, "finished": 2, "hold": 3}
+PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}
+HOLD_REASON_CODES = {"": 0, "stale": 1, "no_position": 2}
+
+#: Layout of the ``data`` array of the per-tick ``DEBUG_FLOAT_ARRAY "guidance"`` record.
+DEBUG_FIELDS = (
+    "tick",                  # 0  tick counter (ticks actually run, from 0)
+    "t_s",                   # 1  tick time since the first tick (loop clock), s
+    "phase_code",            # 2  0 midcourse, 1 close_range, 2 finished, 3 hold
+    "a_cmd_m_s2",            # 3  lateral acceleration command, ENU, left positive
+    "crosstrack_m",          # 4  signed cross-track error, left of path positive
+    "s_proj_m",              # 5  arc length of the closest path point
+    "k1",                    # 6  corrector weight k1 (NaN when not used)
+    "k2",                    # 7  corrector weight k2 (NaN when not used)
+    "x_enu_m",               # 8  vehicle position east
+    "y_enu_m",               # 9  vehicle position north
+    "course_enu_rad",        # 10 course handed to the guidance
+    "speed_m_s",             # 11 speed handed to the guidance (mission speed V)
+    "yaw_rate_cmd_rad_s",    # 12 yaw-rate command, ENU (left positive)
+    "vn_cmd_m_s",            # 13 commanded velocity north (NED vx)
+    "ve_cmd_m_s",            # 14 commanded velocity east (NED vy)
+    "vd_cmd_m_s",            # 15 commanded velocity down (NED vz)
+    "reoptimised",           # 16 1 on ticks where k1, k2 were re-optimised
+    "sample_age_s",          # 17 age of the position sample used
+    "ground_speed_m_s",      # 18 measured horizontal ground speed
+    "hold_reason",           # 19 0 none, 1 stale, 2 no position yet
+    "roll_cmd_rad",          # 20 fixed-wing roll command (NED, right wing down +), NaN otherwise
+    "alt_m",                 # 21 measured altitude (up)
+)
+
+
+@dataclass(frozen=True)
+class TickConfig:
+    """The per-tick settings of a flight (everything ``compute_tick`` needs besides its inputs)."""
+
+    speed_m_s: float
+    rate_hz: float
+    altitude_m: float
+    stale_s: float = 0.3
+    output: str = "velocity"  # "velocity" (copter, rover) or "attitude" (plane)
+    max_bank_deg: float = 35.0
+    min_course_speed_m_s: float = 0.5
+    alt_gain_1_s: float = 1.0
+    max_climb_m_s: float = 2.0
+    thrust: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("speed_m_s", "rate_hz", "stale_s", "max_bank_deg", "alt_gain_1_s", "max_climb_m_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+        if self.output not in ("velocity", "attitude"):
+            raise ValueError(f"output: expected 'velocity' or 'attitude', got {self.output!r}")
+        if not (0 < self.max_bank_deg < 90):
+            raise ValueError(f"max_bank_deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
+
+    @property
+    def dt_s(self) -> float:
+        return 1.0 / self.rate_hz
+
+    @property
+    def altitude_hold(self) -> AltitudeHold:
+        return AltitudeHold(self.altitude_m, self.alt_gain_1_s, self.max_climb_m_s)
+
+
+@dataclass(frozen=True)
+class TickResult:
+    """What one tick decided."""
+
+    tick: int
+    t_s: float
+    phase: str  # a guidance phase, or "hold"
+    hold_reason: str  # "" when not holding
+    state: VehicleState | None
+    output: GuidanceOutput | None
+    setpoint: VelocitySetpoint | AttitudeSetpoint
+    sample: PositionSample | None
+    sample_age_s: float
+    course_rad: float  # the course used (carry it into the next tick as ``prev_course_rad``)
+    debug: list = field(default_factory=list)
+
+    @property
+    def phase_code(self) -> int:
+        return PHASE_CODES[self.phase]
+
+    @property
+    def is_hold(self) -> bool:
+        return self.phase == "hold"
+
+
+def course_from_sample(sample: PositionSample, yaw_ned_rad: float | None, prev_course_rad: float,
+                       min_speed_m_s: float) -> float:
+    """Course (ENU) from the ground velocity; yaw, then the previous course, when slow."""
+    ground_speed = math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s)
+    if ground_speed >= min_speed_m_s:
+        return frames.course_enu_from_vel_ned(sample.vx_ned_m_s, sample.vy_ned_m_s)
+    if yaw_ned_rad is not None and math.isfinite(yaw_ned_rad):
+        return frames.course_enu_from_ned(yaw_ned_rad)
+    return prev_course_rad
+
+
+def compute_tick(
+    guidance,
+    tick: int,
+    t_s: float,
+    sample: PositionSample | None,
+    sample_age_s: float,
+    config: TickConfig,
+    yaw_ned_rad: float | None = None,
+    prev_course_rad: float = 0.0,
+) -> TickResult:
+    """Run one tick: newest position sample -> VehicleState -> guidance.step -> setpoint.
+
+    Parameters
+    ----------
+    guidance : object with ``step(t_s, VehicleState) -> GuidanceOutput`` (``TwoPhaseGuidance``).
+    tick : the tick counter (0 for the first tick run).
+    t_s : tick time since the first tick, in the loop's clock (passed to ``guidance.step``).
+    sample : newest valid LOCAL_POSITION_NED sample, or None if none has arrived yet.
+    sample_age_s : age of ``sample`` at this tick (loop clock); > ``config.stale_s`` -> hold.
+    config : the flight's tick settings.
+    yaw_ned_rad : newest ATTITUDE yaw (fallback for the course when slow), or None.
+    prev_course_rad : course used on the previous tick (last fallback).
+    """
+    alt_m = -sample.z_ned_m if sample is not None else math.nan
+    ground_speed = math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) if sample is not None else math.nan
+    hold_reason = ""
+    if sample is None:
+        hold_reason = "no_position"
+    elif not (sample_age_s <= config.stale_s):  # also catches NaN ages
+        hold_reason = "stale"
+
+    state = None
+    output = None
+    course = prev_course_rad
+    if hold_reason:
+        setpoint = hold_setpoint(alt_m, config.altitude_hold if sample is not None else None)
+        phase = "hold"
+    else:
+        course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
+        x_enu, y_enu, _ = frames.enu_from_ned(sample.x_ned_m, sample.y_ned_m, sample.z_ned_m)
+        state = VehicleState(x_m=x_enu, y_m=y_enu, course_rad=course, speed_m_s=config.speed_m_s)
+        output = guidance.step(t_s, state)
+        phase = output.phase
+        a_cmd = float(output.a_cmd_m_s2)
+        if phase == "finished" or not math.isfinite(a_cmd):
+            setpoint = hold_setpoint(alt_m, config.altitude_hold)
+        elif config.output == "attitude":
+            setpoint = attitude_setpoint(a_cmd, course, config.max_bank_deg, config.thrust)
+        else:
+            setpoint = velocity_setpoint(a_cmd, course, config.speed_m_s, config.dt_s, alt_m,
+                                         config.altitude_hold)
+
+    result = TickResult(tick, t_s, phase, hold_reason, state, output, setpoint, sample,
+                        sample_age_s, course)
+    object.__setattr__(result, "debug", debug_row(result, ground_speed, alt_m))
+    return result
+
+
+def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float) -> list[float]:
+    """The ``DEBUG_FIELDS`` row of a tick (NaN where a field does not apply)."""
+    nan = math.nan
+    out = result.output
+    sp = result.setpoint
+    if isinstance(sp, VelocitySetpoint):
+        vn, ve, vd = sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s
+        yaw_rate_enu = frames.yaw_rate_enu_from_ned(sp.yaw_rate_ned_rad_s)
+        roll = nan
+    else:
+        vn = ve = vd = nan
+        a = out.a_cmd_m_s2 if out is not None else 0.0
+        yaw_rate_enu = a / result.state.speed_m_s if result.state is not None else 0.0
+        roll = sp.roll_ned_rad
+    row = [
+        float(result.tick),
+        float(result.t_s),
+        float(result.phase_code),
+        float(out.a_cmd_m_s2) if out is not None else 0.0,
+        float(out.crosstrack_m) if out is not None else nan,
+        float(out.s_proj_m) if out is not None else nan,
+        float(out.k1) if out is not None else nan,
+        float(out.k2) if out is not None else nan,
+        float(result.state.x_m) if result.state is not None else nan,
+        float(result.state.y_m) if result.state is not None else nan,
+        float(result.course_rad),
+        float(result.state.speed_m_s) if result.state is not None else nan,
+        float(yaw_rate_enu),
+        float(vn),
+        float(ve),
+        float(vd),
+        1.0 if (out is not None and out.reoptimised) else 0.0,
+        float(result.sample_age_s),
+        float(ground_speed_m_s),
+        float(HOLD_REASON_CODES[result.hold_reason]),
+        float(roll),
+        float(alt_m),
+    ]
+    assert len(row) == len(DEBUG_FIELDS)
+    return row
