@@ -363,7 +363,9 @@ class _Builder:
                 self.problem(f"path.points_deg[{i}]", "expected [lat_deg in -90..90, lon_deg in -180..180]")
             if bad:
                 return None
-            e, n, _ = geodetic.enu_from_geodetic(pts[:, 0], pts[:, 1], origin.alt_m,
+            # Points at flight height above the origin (the horizontal scale depends on height).
+            height_m = origin.alt_m + (self.doc.get("altitude_m") or 0.0)
+            e, n, _ = geodetic.enu_from_geodetic(pts[:, 0], pts[:, 1], height_m,
                                                  origin.lat_deg, origin.lon_deg, origin.alt_m)
             pts = np.column_stack([e, n])
         else:

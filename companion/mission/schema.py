@@ -6,8 +6,8 @@ descriptions. Two things are generated from it:
 - the validator, :func:`validate`, which walks a parsed YAML document against the description and
   returns the document with defaults filled in plus every problem found (key path and message);
 - the JSON Schema, :func:`json_schema`, committed as ``companion/mission/mission.schema.json`` for
-  editors (``python -m companion.mission.schema > companion/mission/mission.schema.json``; a test
-  checks the committed file is current).
+  editors (regenerate with ``companion mission schema > companion/mission/mission.schema.json``;
+  a test checks the committed file is current).
 
 Checks that involve several keys at once (``origin`` required for ``frame: geodetic``, ranges in
 increasing order, path geometry) are in :mod:`companion.mission.loader`.
@@ -147,8 +147,8 @@ PATH = Tagged(
                 "type": Field(String(enum=("function",)), "path kind", required=True),
                 "y_of_x": Field(String(variable="x"), "y in metres as an expression in x (metres)",
                                 required=True),
-                "x_range_m": Field(_RANGE, "[x_first_m, x_last_m]; the path runs from the first to "
-                                   "the last (last < first flies towards -x)", required=True),
+                "x_range_m": Field(_RANGE, "[x_first_m, x_last_m], x_first_m < x_last_m; the path "
+                                   "is flown towards increasing x", required=True),
             },
         ),
         "parametric": Object(
@@ -185,8 +185,8 @@ PATH = Tagged(
                 "start_m": Field(_XY, "first point [x_m, y_m]", default=[0.0, 0.0]),
                 "start_heading_deg": Field(_FINITE, "heading at the first point, in the frame's angle "
                                            "convention", default=0.0),
-                "blend_m": Field(Number(minimum=0), "length of each curvature ramp (0: lines and "
-                                 "arcs only, curvature jumps)", default=5.0),
+                "blend_m": Field(_POSITIVE, "length of each curvature ramp (clothoid) replacing a "
+                                 "curvature jump", default=5.0),
                 "segments": Field(
                     Array(
                         Tagged(
@@ -469,7 +469,6 @@ def json_schema() -> dict:
     """The JSON Schema (draft 2020-12) of a mission file, generated from :data:`MISSION`."""
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "$id": "https://github.com/companion/companion/mission.schema.json",
         "title": "companion mission",
         **_json(MISSION),
     }
@@ -478,7 +477,3 @@ def json_schema() -> dict:
 def json_schema_text() -> str:
     """:func:`json_schema` as the text committed in ``mission.schema.json``."""
     return json.dumps(json_schema(), indent=2) + "\n"
-
-
-if __name__ == "__main__":  # pragma: no cover
-    print(json_schema_text(), end="")

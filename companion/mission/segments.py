@@ -1,0 +1,253 @@
+"""Paths made of straight lines and circular arcs, blended so that they are C^2.
+
+Lines and arcs joined tangentially give a path whose heading is continuous but whose curvature
+jumps at every joint (0 on a line, 1/R on an arc): only C^1. A vehicle cannot change its lateral
+acceleration instantly, and the guidance's curvature-based terms would see steps. So the
+curvature profile is smoothed:
+
+    kappa_b(s) = (1 / b) * integral of kappa(t) dt over t in [s - b/2, s + b/2]
+
+a moving average of width ``b = blend_m``. The piecewise-constant curvature becomes piecewise
+linear (a clothoid ramp of length ``b`` centred on each joint), so the curvature is continuous and
+the path is C^2. The moving average preserves the total turn of each stretch away from the ends;
+the heading is its exact integral and the position is integrated numerically on a fine grid.
+Near each joint the blended path departs from the line-and-arc geometry by O(b^2 / R) (about
+``b^2 / (48 R)`` at the joint itself).
+
+Open paths extend the first and last curvature beyond the ends, so the start point and heading
+are exactly those given. Closed paths use the periodic (circular) moving average; the unblended
+lines and arcs must close (end point and heading) and the tiny closure error the blend leaves is
+spread linearly along the loop.
+
+:func:`filleted_waypoint_path` builds such a path from waypoints: straight legs with each corner
+rounded by an arc of radius ``corner_radius_m``, blended with ``b = corner_radius_m / 2``
+(capped by the shortest piece). The path passes through the first and last waypoints (open paths)
+but cuts every corner.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from companion.geometry.paths import Path, parametric_path
+
+#: Spacing of the integration grid (finer grids for short paths).
+GRID_SPACING_M = 0.02
+MAX_GRID_POINTS = 400_001
+#: The unblended loop must close to within this fraction of its length (plus 1 cm).
+CLOSURE_TOLERANCE = 1e-6
+
+Problem = Callable[[str, str], None]
+
+
+def _cumulative_curvature(boundaries: np.ndarray, kappa: np.ndarray, closed: bool):
+    """K(s) = integral of the piecewise-constant curvature from 0 to s, for any real s."""
+    total_len = float(boundaries[-1])
+    k_at = np.concatenate(([0.0], np.cumsum(kappa * np.diff(boundaries))))
+    total_turn = float(k_at[-1])
+
+    def big_k(s: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, dtype=float)
+        if closed:
+            laps = np.floor(s / total_len)
+            r = s - laps * total_len
+            return np.interp(r, boundaries, k_at) + laps * total_turn
+        inside = np.interp(s, boundaries, k_at)
+        before = kappa[0] * s
+        after = total_turn + kappa[-1] * (s - total_len)
+        return np.where(s < 0, before, np.where(s > total_len, after, inside))
+
+    return big_k, total_turn
+
+
+def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float, *, closed: bool,
+                  where: str = "path", problem: Problem | None = None) -> Path | None:
+    """A C^2 path from tangent lines and arcs.
+
+    Parameters
+    ----------
+    start_xy_m, start_heading_rad : the first point and heading (ENU, anticlockwise from east).
+    segments : sequence of ``("line", length_m, 0.0)`` or ``("arc", radius_m, turn_rad)``
+        (turn positive = left).
+    blend_m : width of the curvature ramps (> 0 for C^2; 0 keeps the curvature jumps).
+    closed : the segments form a loop.
+    where, problem : where to report problems: ``problem(key_path, message)``; when None, a
+        problem raises ``ValueError``.
+
+    Returns
+    -------
+    Path or None (after reporting a problem).
+    """
+    def report(key: str, message: str) -> None:
+        if problem is None:
+            raise ValueError(f"{key}: {message}")
+        problem(key, message)
+
+    lengths, kappas = [], []
+    for kind, size, turn in segments:
+        if kind == "line":
+            lengths.append(float(size))
+            kappas.append(0.0)
+        else:
+            lengths.append(float(size) * abs(turn))
+            kappas.append(math.copysign(1.0 / float(size), turn))
+    lengths_a = np.asarray(lengths)
+    kappa_a = np.asarray(kappas)
+    boundaries = np.concatenate(([0.0], np.cumsum(lengths_a)))
+    total = float(boundaries[-1])
+
+    # Unblended geometry: exact end point and heading, for the closure check.
+    x, y, h = float(start_xy_m[0]), float(start_xy_m[1]), float(start_heading_rad)
+    for length, k in zip(lengths_a, kappa_a):
+        if k == 0.0:
+            x += length * math.cos(h)
+            y += length * math.sin(h)
+        else:
+            r = 1.0 / k
+            h_new = h + k * length
+            x += r * (math.sin(h_new) - math.sin(h))
+            y -= r * (math.cos(h_new) - math.cos(h))
+            h = h_new
+    if closed:
+        turn_deg = math.degrees(h - start_heading_rad)
+        laps = round(turn_deg / 360.0)
+        gap = math.hypot(x - start_xy_m[0], y - start_xy_m[1])
+        ok = True
+        if abs(turn_deg - 360.0 * laps) > 1e-6:
+            report(f"{where}.closed", f"expected segments turning a whole number of turns for a loop, "
+                   f"got {turn_deg:.6g} deg")
+            ok = False
+        if gap > CLOSURE_TOLERANCE * total + 0.01:
+            report(f"{where}.closed", f"expected the segments to end where they start, got a gap of "
+                   f"{gap:.4g} m")
+            ok = False
+        if not ok:
+            return None
+
+    n = int(min(max(math.ceil(total / GRID_SPACING_M), 2000), MAX_GRID_POINTS - 1))
+    s = np.linspace(0.0, total, n + 1)
+    big_k, _ = _cumulative_curvature(boundaries, kappa_a, closed)
+    if blend_m > 0:
+        half = 0.5 * blend_m
+        # Heading = integral of the moving average = moving average of K (exact for the box kernel):
+        # theta(s) = theta0 + (1/b) * integral over [s - b/2, s + b/2] of K. Away from the joints
+        # (K linear over the window) this is exactly the unblended heading theta0 + K(s); a closed
+        # loop whose start lies inside a ramp starts with the blended heading there.
+        # The inner integral is done with Gauss-Legendre (K is piecewise linear, so 8 points per
+        # sub-window of the grid spacing would be exact; 16 nodes over the window suffice here).
+        g_u, g_w = np.polynomial.legendre.leggauss(16)
+        pieces = max(1, int(math.ceil(blend_m / 0.5)))  # sub-windows of at most 0.5 m
+
+        def averaged_k(sv: np.ndarray) -> np.ndarray:
+            acc = np.zeros_like(sv)
+            edges = np.linspace(-half, half, pieces + 1)
+            for a, b in zip(edges[:-1], edges[1:]):
+                mid, hw = 0.5 * (a + b), 0.5 * (b - a)
+                acc += (big_k(sv[:, None] + mid + hw * g_u[None, :]) * g_w[None, :]).sum(axis=1) * hw
+            return acc / blend_m
+
+        theta = start_heading_rad + averaged_k(s)
+        curvature = (big_k(s + half) - big_k(s - half)) / blend_m
+    else:
+        theta = start_heading_rad + big_k(s)
+        curvature = np.interp(s, boundaries[:-1], kappa_a)
+
+    # Position: trapezoid on the fine grid, with Simpson-like accuracy from the midpoint heading.
+    ds = np.diff(s)
+    c, sn = np.cos(theta), np.sin(theta)
+    xs = start_xy_m[0] + np.concatenate(([0.0], np.cumsum(0.5 * (c[1:] + c[:-1]) * ds)))
+    ys = start_xy_m[1] + np.concatenate(([0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * ds)))
+    del curvature  # the path recomputes curvature from the positions' spline
+    bc = "not-a-knot"
+    if closed:
+        gx, gy = xs[-1] - xs[0], ys[-1] - ys[0]
+        xs = xs - gx * s / total
+        ys = ys - gy * s / total
+        xs[-1], ys[-1] = xs[0], ys[0]
+        bc = "periodic"
+    sx = CubicSpline(s, xs, bc_type=bc)
+    sy = CubicSpline(s, ys, bc_type=bc)
+    return parametric_path(sx, sy, (0.0, total), closed=closed)
+
+
+def filleted_waypoint_path(points_xy_m, corner_radius_m: float, *, closed: bool, where: str = "path",
+                           problem: Problem | None = None) -> Path | None:
+    """Straight legs between waypoints, each corner rounded with an arc, blended to C^2.
+
+    The arc at a corner turning by ``alpha`` starts ``corner_radius_m * tan(|alpha| / 2)`` before
+    the waypoint; two neighbouring corners must fit on their common leg. Closed loops start at the
+    middle of the first leg.
+    """
+    def report(key: str, message: str) -> None:
+        if problem is None:
+            raise ValueError(f"{key}: {message}")
+        problem(key, message)
+
+    pts = np.asarray(points_xy_m, dtype=float)
+    if closed and np.hypot(*(pts[-1] - pts[0])) < 1e-9:
+        pts = pts[:-1]
+    m = len(pts)
+    legs = [(pts[(i + 1) % m] - pts[i]) for i in range(m if closed else m - 1)]
+    leg_len = [float(np.hypot(*d)) for d in legs]
+    dirs = [d / L for d, L in zip(legs, leg_len)]
+    r = float(corner_radius_m)
+    n_legs = len(legs)
+
+    # Corner turn angles: corner i sits between leg i-1 and leg i.
+    def turn_at(i: int) -> float:
+        a, b = dirs[(i - 1) % n_legs], dirs[i % n_legs]
+        return math.atan2(a[0] * b[1] - a[1] * b[0], a[0] * b[0] + a[1] * b[1])
+
+    corners = range(m) if closed else range(1, m - 1)
+    turn = {i: turn_at(i) for i in corners}
+    for i, t in turn.items():
+        if abs(abs(t) - math.pi) < 1e-6:
+            report(f"{where}.points_m[{i}]", "expected a corner of less than 180 deg, got a reversal")
+            return None
+    cut = {i: r * math.tan(abs(t) / 2.0) for i, t in turn.items()}
+    ok = True
+    for j in range(n_legs):
+        before = cut.get(j, 0.0)  # corner at the leg's first point
+        after = cut.get((j + 1) % m if closed else j + 1, 0.0)
+        if before + after > leg_len[j] + 1e-9:
+            report(f"{where}.corner_radius_m", f"expected corners that fit on their legs: leg {j} "
+                   f"(points {j} to {(j + 1) % m}) is {leg_len[j]:.3g} m but its rounded corners need "
+                   f"{before + after:.3g} m; use a smaller radius")
+            ok = False
+    if not ok:
+        return None
+
+    segs: list[tuple[str, float, float]] = []
+
+    def add_line(length: float) -> None:
+        if length > 1e-9:
+            segs.append(("line", length, 0.0))
+
+    def add_corner(i: int) -> None:
+        if abs(turn[i]) > 1e-9:
+            segs.append(("arc", r, turn[i]))
+
+    if closed:
+        start = pts[0] + 0.5 * legs[0]
+        heading = math.atan2(dirs[0][1], dirs[0][0])
+        add_line(0.5 * leg_len[0] - cut[1 % m])
+        for j in range(1, n_legs):
+            add_corner(j)
+            add_line(leg_len[j] - cut[j] - cut[(j + 1) % m])
+        add_corner(0)
+        add_line(0.5 * leg_len[0] - cut[0])
+    else:
+        start = pts[0]
+        heading = math.atan2(dirs[0][1], dirs[0][0])
+        add_line(leg_len[0] - cut.get(1, 0.0))
+        for j in range(1, n_legs):
+            add_corner(j)
+            add_line(leg_len[j] - cut[j] - cut.get(j + 1, 0.0))
+    shortest = min(size * (abs(t) if kind == "arc" else 1.0) for kind, size, t in segs)
+    blend = min(0.5 * r, shortest)
+    return segments_path((float(start[0]), float(start[1])), heading, segs, blend, closed=closed,
+                         where=where, problem=problem)
