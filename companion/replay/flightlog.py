@@ -1,0 +1,217 @@
+"""Extract from a tlog what replay needs: one entry per guidance tick, in the order flown.
+
+Two kinds of log are understood:
+
+``companion``
+    The companion recorded, after each tick's setpoint, one ``DEBUG_FLOAT_ARRAY`` named
+    ``"guidance"`` (layout :data:`companion.loop.tick.DEBUG_FIELDS`). Its ``time_usec`` is
+    ``time_boot_ms * 1000`` of the ``LOCAL_POSITION_NED`` sample the tick used, so the tick is
+    rebuilt exactly: that sample (looked up by ``time_boot_ms`` among the samples received before
+    the record), the tick counter, the tick time ``t_s`` and the sample age from the record, the
+    newest ``ATTITUDE`` yaw received before it, and the setpoint the same sender sent last
+    before it.
+
+``setpoints``
+    Any other log with ``SET_POSITION_TARGET_LOCAL_NED`` (another controller, a script): each
+    setpoint is paired with the newest valid ``LOCAL_POSITION_NED`` of its target system received
+    before it; the tick time is the sample's autopilot time since the first paired sample, and the
+    sample age is the tlog time between the sample and the setpoint.
+
+Samples whose fields the live link would have rejected (NaN, out of range; see
+:func:`companion.io.state.position_problem`) are ignored here too.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from companion.errors import LogError
+from companion.io.logread import MSG_ID, LogWarning, TlogReader
+from companion.io.state import PositionSample, position_problem
+from companion.loop.tick import DEBUG_FIELDS, PHASE_CODES
+from companion.replay.progress import ByteProgress
+
+GUIDANCE_ARRAY_NAME = "guidance"
+ID_LPN = MSG_ID["LOCAL_POSITION_NED"]
+ID_SPT = MSG_ID["SET_POSITION_TARGET_LOCAL_NED"]
+ID_DFA = MSG_ID["DEBUG_FLOAT_ARRAY"]
+ID_ATTITUDE = MSG_ID["ATTITUDE"]
+PROGRESS_EVERY_RECORDS = 4096
+N_DEBUG = len(DEBUG_FIELDS)
+DEBUG_INDEX = {name: i for i, name in enumerate(DEBUG_FIELDS)}
+
+
+@dataclass(frozen=True)
+class LoggedSetpoint:
+    """The velocity + yaw-rate fields of one logged SET_POSITION_TARGET_LOCAL_NED (NED)."""
+
+    vx_ned_m_s: float
+    vy_ned_m_s: float
+    vz_ned_m_s: float
+    yaw_rate_ned_rad_s: float
+    type_mask: int
+    coordinate_frame: int
+
+
+@dataclass
+class LoggedTick:
+    """Everything known about one tick of the logged flight.
+
+    ``debug`` is the recorded internals row (companion logs) or None; ``setpoint`` is None when
+    the setpoint of a recorded tick was lost (damaged log).
+    """
+
+    time_unix_s: float
+    tick: int
+    t_s: float
+    sample: PositionSample | None
+    sample_age_s: float
+    yaw_ned_rad: float | None
+    setpoint: LoggedSetpoint | None
+    debug: list[float] | None = None
+    sample_reconstructed: bool = False
+
+    def debug_value(self, name: str) -> float:
+        return math.nan if self.debug is None else self.debug[DEBUG_INDEX[name]]
+
+
+@dataclass
+class LoggedFlight:
+    """The ticks of a logged flight plus what was noticed while reading it."""
+
+    path: Path
+    kind: str  # "companion" or "setpoints"
+    ticks: list[LoggedTick]
+    warnings: list[LogWarning] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    records: int = 0
+
+
+def _setpoint(msg) -> LoggedSetpoint:
+    return LoggedSetpoint(msg.vx, msg.vy, msg.vz, msg.yaw_rate, msg.type_mask, msg.coordinate_frame)
+
+
+def _sample(msg) -> PositionSample | None:
+    if position_problem(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz) is not None:
+        return None
+    return PositionSample(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
+
+
+def _sample_from_debug(row: list[float], time_boot_ms: int) -> PositionSample | None:
+    """Rebuild a lost sample from the recorded internals (position exact, velocity from course)."""
+    x_enu, y_enu = row[DEBUG_INDEX["x_enu_m"]], row[DEBUG_INDEX["y_enu_m"]]
+    course, speed = row[DEBUG_INDEX["course_enu_rad"]], row[DEBUG_INDEX["ground_speed_m_s"]]
+    alt = row[DEBUG_INDEX["alt_m"]]
+    if not all(math.isfinite(v) for v in (x_enu, y_enu, course, speed)):
+        return None
+    return PositionSample(time_boot_ms, y_enu, x_enu, -alt if math.isfinite(alt) else 0.0,
+                          speed * math.sin(course), speed * math.cos(course), 0.0)
+
+
+def read_flight(
+    path: str | Path,
+    on_warning: Callable[[LogWarning], None] | None = None,
+    progress: bool | None = None,
+) -> LoggedFlight:
+    """Read a tlog into a :class:`LoggedFlight` (see the module docstring for the two kinds).
+
+    Raises :class:`LogError` when the file has no setpoints to compare (or cannot be read).
+    """
+    path = Path(path)
+    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE}, on_warning=on_warning)
+    samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
+    newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
+    newest_yaw: dict[int, float] = {}
+    last_setpoint: dict[tuple[int, int], tuple[LoggedSetpoint, int]] = {}  # sender -> (sp, target)
+    companion_ticks: list[LoggedTick] = []
+    setpoint_ticks: list[LoggedTick] = []
+    notes: list[str] = []
+    lost_setpoints = 0
+    reconstructed = 0
+    first_boot_ms = None
+
+    with ByteProgress(reader.size_bytes, "reading", enabled=progress) as bar:
+        for rec in reader:
+            if reader.records % PROGRESS_EVERY_RECORDS == 0:
+                bar.update_to(rec.offset)
+            msg = rec.msg
+            if msg is None:
+                continue
+            mid = rec.msg_id
+            if mid == ID_LPN:
+                sample = _sample(msg)
+                if sample is not None:
+                    samples_by_ms.setdefault(rec.src_system, {})[sample.time_boot_ms] = sample
+                    newest_sample[rec.src_system] = (rec.time_s, sample)
+            elif mid == ID_ATTITUDE:
+                if math.isfinite(msg.yaw):
+                    newest_yaw[rec.src_system] = msg.yaw
+            elif mid == ID_SPT:
+                sp = _setpoint(msg)
+                sender = (rec.src_system, rec.src_component)
+                last_setpoint[sender] = (sp, msg.target_system)
+                found = newest_sample.get(msg.target_system)
+                if found is not None:
+                    sample_time, sample = found
+                    if first_boot_ms is None:
+                        first_boot_ms = sample.time_boot_ms
+                    setpoint_ticks.append(LoggedTick(
+                        time_unix_s=rec.time_s, tick=len(setpoint_ticks),
+                        t_s=(sample.time_boot_ms - first_boot_ms) / 1000.0, sample=sample,
+                        sample_age_s=max(0.0, rec.time_s - sample_time),
+                        yaw_ned_rad=newest_yaw.get(msg.target_system), setpoint=sp))
+            elif mid == ID_DFA:
+                name = msg.name.decode("ascii", "replace") if isinstance(msg.name, bytes) else str(msg.name)
+                if name != GUIDANCE_ARRAY_NAME:
+                    continue
+                row = [float(v) for v in msg.data[:N_DEBUG]]
+                sender = (rec.src_system, rec.src_component)
+                sp_target = last_setpoint.pop(sender, None)
+                if sp_target is None:
+                    lost_setpoints += 1
+                    sp, target = None, None
+                else:
+                    sp, target = sp_target
+                if target is None:
+                    target = next(iter(samples_by_ms), rec.src_system)
+                boot_ms = int(msg.time_usec // 1000)
+                hold_reason = int(row[DEBUG_INDEX["hold_reason"]])
+                sample = samples_by_ms.get(target, {}).get(boot_ms)
+                rebuilt = False
+                if sample is None and hold_reason != 2:  # 2: no position had arrived yet
+                    sample = _sample_from_debug(row, boot_ms)
+                    rebuilt = sample is not None
+                    reconstructed += rebuilt
+                companion_ticks.append(LoggedTick(
+                    time_unix_s=rec.time_s, tick=int(row[DEBUG_INDEX["tick"]]),
+                    t_s=row[DEBUG_INDEX["t_s"]], sample=sample,
+                    sample_age_s=row[DEBUG_INDEX["sample_age_s"]],
+                    yaw_ned_rad=newest_yaw.get(target), setpoint=sp, debug=row,
+                    sample_reconstructed=rebuilt))
+
+    if reader.records == 0:
+        raise LogError(f"{path}: no MAVLink records could be read ({reader.size_bytes} bytes)")
+    if companion_ticks:
+        kind, ticks = "companion", companion_ticks
+        if lost_setpoints:
+            notes.append(f"{lost_setpoints} recorded ticks have no setpoint before them (damaged log?)")
+        if reconstructed:
+            notes.append(f"{reconstructed} ticks used a LOCAL_POSITION_NED sample missing from the log; "
+                         "rebuilt from the recorded internals (velocity approximate)")
+    elif setpoint_ticks:
+        kind, ticks = "setpoints", setpoint_ticks
+        notes.append("no companion guidance records: each logged setpoint is paired with the newest "
+                     "LOCAL_POSITION_NED before it (another controller's setpoints are expected to differ)")
+    else:
+        raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED paired with a LOCAL_POSITION_NED; "
+                       "nothing to replay")
+    return LoggedFlight(path, kind, ticks, list(reader.warnings), notes, reader.records)
+
+
+def phase_name(code: float) -> str:
+    """Phase name of a recorded phase code (``"unknown"`` for anything else)."""
+    names = {v: k for k, v in PHASE_CODES.items()}
+    return names.get(int(code), "unknown") if math.isfinite(code) else "unknown"

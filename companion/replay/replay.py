@@ -1,0 +1,351 @@
+"""Re-run the guidance on a logged flight and report where it differs from what was commanded.
+
+The question replay answers: *given what the vehicle reported, did the companion command what
+the guidance law says it should have?* It rebuilds the guidance from the mission, feeds it the
+logged ``LOCAL_POSITION_NED`` samples in the order and at the ticks the flight used (see
+:mod:`companion.replay.flightlog`), and runs each tick through
+:func:`companion.loop.tick.compute_tick`, the same function the live loop calls, so replay
+and flight cannot drift apart through a copied formula.
+
+Comparison, per tick
+--------------------
+- yaw rate: ``|yaw_rate_logged - yaw_rate_replayed|`` (rad/s, NED, as sent);
+- velocity: ``|v_logged - v_replayed|``, the Euclidean norm of the difference of the commanded
+  (vx, vy, vz) vectors (m/s, NED);
+- on companion logs also the recorded internals: phase, a_cmd, k1, k2 (reported; a phase
+  mismatch counts as a divergence, the others follow from the yaw rate ``= a_cmd / V``).
+
+A tick is *within tolerance* when both differences are at most the tolerances and (companion logs)
+the phase is the same. The flight is within tolerance when every compared tick is. Per-phase
+figures are grouped by the logged phase (companion logs) or by the replayed phase (other logs,
+which record none).
+
+The flight's own tracking figures use :func:`companion.sim.metrics.tracking_metrics` on the
+logged cross-track error and lateral acceleration: the recorded internals on companion logs; on
+other logs the cross-track error of the logged positions from the mission path and
+``a = -yaw_rate_ned * |v_horizontal|`` of the logged setpoint (the lateral acceleration of a
+vehicle turning at the commanded yaw rate at the commanded speed, left positive).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from companion.errors import LogError
+from companion.io.logread import LogWarning
+from companion.io.setpoints import VelocitySetpoint
+from companion.loop.tick import TickConfig, compute_tick
+from companion.mission import Mission, load_mission
+from companion.replay.flightlog import LoggedFlight, LoggedTick, phase_name, read_flight
+from companion.replay.progress import ByteProgress
+from companion.sim.metrics import tracking_metrics
+
+MISSION_SUFFIX = ".mission.yaml"
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """Largest accepted difference between a logged and a replayed setpoint."""
+
+    yaw_rate_rad_s: float = 0.01
+    vel_m_s: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("yaw_rate_rad_s", "vel_m_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+
+
+@dataclass
+class ReplayResult:
+    """The outcome of a replay: verdict, per-phase differences, per-tick series."""
+
+    flight: LoggedFlight
+    mission_name: str
+    tolerance: Tolerance
+    series: dict[str, np.ndarray]
+    first_divergence: dict | None
+    per_phase: dict[str, dict]
+    phase_switches: dict[str, list[dict]]
+    tracking: dict
+    timing_s: dict = field(default_factory=dict)
+    mission_path: object = None  # the mission's reference path (for plots)
+
+    @property
+    def steps_compared(self) -> int:
+        return int(np.count_nonzero(self.series["compared"]))
+
+    @property
+    def within_tolerance(self) -> bool:
+        return self.first_divergence is None
+
+    @property
+    def exit_code(self) -> int:
+        return 0 if self.within_tolerance else 1
+
+    def to_json(self) -> dict:
+        """One JSON-ready object (metric names of :mod:`companion.sim.metrics`; NaN as null)."""
+        from companion.replay.report import json_safe
+
+        return json_safe({
+            "file": str(self.flight.path),
+            "kind": self.flight.kind,
+            "mission": self.mission_name,
+            "steps_compared": self.steps_compared,
+            "ticks": int(self.series["t_s"].size),
+            "within_tolerance": self.within_tolerance,
+            "tolerance": {"yaw_rate_rad_s": self.tolerance.yaw_rate_rad_s, "vel_m_s": self.tolerance.vel_m_s},
+            "first_divergence": self.first_divergence,
+            "per_phase": self.per_phase,
+            "phase_switches": self.phase_switches,
+            "d_rms_m": self.tracking["d_rms_m"],
+            "d_max_m": self.tracking["d_max_m"],
+            "a_rms_m_s2": self.tracking["a_rms_m_s2"],
+            "a_max_m_s2": self.tracking["a_max_m_s2"],
+            "duration_s": self.tracking["duration_s"],
+            "phases": self.tracking["phases"],
+            "warnings": [w.as_dict() for w in self.flight.warnings],
+            "notes": list(self.flight.notes),
+            "timing_s": dict(self.timing_s),
+        })
+
+
+# ------------------------------------------------------------------------------ set-up
+
+def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
+    """The mission file: ``mission`` if given, else ``<tlog>.mission.yaml`` recorded beside the log,
+    else ``<tlog stem>.yaml`` beside it. Raises :class:`LogError` when there is none."""
+    if mission is not None:
+        return Path(mission)
+    tlog = Path(tlog)
+    for candidate in (Path(str(tlog) + MISSION_SUFFIX), tlog.with_suffix(".yaml")):
+        if candidate.is_file():
+            return candidate
+    raise LogError(f"{tlog}: no mission recorded beside the log (expected {tlog.name}{MISSION_SUFFIX}); "
+                   "pass --mission M.yaml")
+
+
+def tick_config_for(mission: Mission) -> TickConfig:
+    """The per-tick settings a flight of this mission used (those the live runner derives)."""
+    return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=mission.guidance.rate_hz,
+                      altitude_m=mission.altitude_m)
+
+
+def default_guidance(mission: Mission):
+    """A fresh two-phase guidance for the mission (the object the live loop steps)."""
+    from companion.guidance.two_phase import TwoPhaseGuidance
+
+    return TwoPhaseGuidance(mission.path, mission.guidance)
+
+
+# ------------------------------------------------------------------------------ replay
+
+_SERIES = ("t_s", "tick", "x_enu_m", "y_enu_m", "crosstrack_m", "a_logged_m_s2", "a_replayed_m_s2",
+           "yaw_rate_logged_rad_s", "yaw_rate_replayed_rad_s", "vx_logged_m_s", "vy_logged_m_s",
+           "vz_logged_m_s", "vx_replayed_m_s", "vy_replayed_m_s", "vz_replayed_m_s",
+           "k1_logged", "k2_logged", "k1_replayed", "k2_replayed", "yaw_rate_diff_rad_s", "vel_diff_m_s")
+
+
+def _absdiff(a: float, b: float) -> float:
+    """|a - b|, 0 when both are NaN (the same "not applicable"), inf when only one is."""
+    if math.isnan(a) or math.isnan(b):
+        return 0.0 if (math.isnan(a) and math.isnan(b)) else math.inf
+    return abs(a - b)
+
+
+def replay_flight(
+    flight: LoggedFlight,
+    mission: Mission,
+    tolerance: Tolerance = Tolerance(),
+    config: TickConfig | None = None,
+    guidance_factory: Callable[[Mission], object] = default_guidance,
+    progress: bool | None = None,
+) -> ReplayResult:
+    """Replay the ticks of ``flight`` through a fresh guidance built from ``mission``."""
+    started = time.perf_counter()
+    config = config or tick_config_for(mission)
+    guidance = guidance_factory(mission)
+    path = mission.path
+    companion_log = flight.kind == "companion"
+    n = len(flight.ticks)
+    cols = {name: np.full(n, np.nan) for name in _SERIES}
+    compared = np.zeros(n, dtype=bool)
+    phase_logged: list[str] = []
+    phase_replayed: list[str] = []
+    first_divergence = None
+    prev_course = 0.0
+    s_hint = None
+
+    with ByteProgress(n, "replaying", enabled=progress) as bar:
+        for i, tk in enumerate(flight.ticks):
+            if i % 1024 == 0:
+                bar.update_to(i)
+            res = compute_tick(guidance, tk.tick, tk.t_s, tk.sample, tk.sample_age_s, config,
+                               yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course)
+            prev_course = res.course_rad
+            sp = res.setpoint
+            out = res.output
+            cols["t_s"][i] = tk.t_s
+            cols["tick"][i] = tk.tick
+            if tk.sample is not None:
+                cols["x_enu_m"][i] = tk.sample.y_ned_m
+                cols["y_enu_m"][i] = tk.sample.x_ned_m
+            cols["a_replayed_m_s2"][i] = out.a_cmd_m_s2 if out is not None else 0.0
+            cols["k1_replayed"][i] = out.k1 if out is not None else math.nan
+            cols["k2_replayed"][i] = out.k2 if out is not None else math.nan
+            if isinstance(sp, VelocitySetpoint):
+                cols["yaw_rate_replayed_rad_s"][i] = sp.yaw_rate_ned_rad_s
+                cols["vx_replayed_m_s"][i] = sp.vx_ned_m_s
+                cols["vy_replayed_m_s"][i] = sp.vy_ned_m_s
+                cols["vz_replayed_m_s"][i] = sp.vz_ned_m_s
+            phase_replayed.append(res.phase)
+
+            logged = tk.setpoint
+            if companion_log:
+                phase_logged.append(phase_name(tk.debug_value("phase_code")))
+                cols["crosstrack_m"][i] = tk.debug_value("crosstrack_m")
+                cols["a_logged_m_s2"][i] = tk.debug_value("a_cmd_m_s2")
+                cols["k1_logged"][i] = tk.debug_value("k1")
+                cols["k2_logged"][i] = tk.debug_value("k2")
+            else:
+                phase_logged.append(res.phase)
+                if tk.sample is not None:
+                    x, y = tk.sample.y_ned_m, tk.sample.x_ned_m
+                    s_hint = path.project(x, y, s_hint)
+                    cols["crosstrack_m"][i] = path.crosstrack_m(x, y, s_hint)
+                if logged is not None:
+                    speed_h = math.hypot(logged.vx_ned_m_s, logged.vy_ned_m_s)
+                    cols["a_logged_m_s2"][i] = -logged.yaw_rate_ned_rad_s * speed_h
+            if logged is None or not isinstance(sp, VelocitySetpoint):
+                continue
+            cols["yaw_rate_logged_rad_s"][i] = logged.yaw_rate_ned_rad_s
+            cols["vx_logged_m_s"][i] = logged.vx_ned_m_s
+            cols["vy_logged_m_s"][i] = logged.vy_ned_m_s
+            cols["vz_logged_m_s"][i] = logged.vz_ned_m_s
+            d_yaw = _absdiff(logged.yaw_rate_ned_rad_s, sp.yaw_rate_ned_rad_s)
+            d_vel = math.sqrt(_absdiff(logged.vx_ned_m_s, sp.vx_ned_m_s) ** 2
+                              + _absdiff(logged.vy_ned_m_s, sp.vy_ned_m_s) ** 2
+                              + _absdiff(logged.vz_ned_m_s, sp.vz_ned_m_s) ** 2)
+            cols["yaw_rate_diff_rad_s"][i] = d_yaw
+            cols["vel_diff_m_s"][i] = d_vel
+            compared[i] = True
+            if first_divergence is None:
+                reasons = []
+                if not d_yaw <= tolerance.yaw_rate_rad_s:
+                    reasons.append("yaw_rate")
+                if not d_vel <= tolerance.vel_m_s:
+                    reasons.append("velocity")
+                if companion_log and phase_logged[-1] != res.phase:
+                    reasons.append("phase")
+                if reasons:
+                    first_divergence = _divergence(tk, i, cols, phase_logged[-1], res.phase, reasons,
+                                                   companion_log)
+        bar.update_to(n)
+
+    cols["compared"] = compared
+    per_phase = _per_phase(cols, phase_logged if companion_log else phase_replayed)
+    switches = {"logged": _switches(cols["t_s"], phase_logged) if companion_log else [],
+                "replayed": _switches(cols["t_s"], phase_replayed)}
+    tracking = _tracking(cols, phase_logged)
+    cols["phase_logged"] = np.asarray(phase_logged, dtype=object)
+    cols["phase_replayed"] = np.asarray(phase_replayed, dtype=object)
+    return ReplayResult(flight, mission.name, tolerance, cols, first_divergence, per_phase, switches,
+                        tracking, {"replay_s": time.perf_counter() - started}, mission.path)
+
+
+def _divergence(tk: LoggedTick, i: int, cols: dict, phase_logged: str, phase_replayed: str,
+                reasons: list[str], companion_log: bool) -> dict:
+    def side(which: str, phase: str) -> dict:
+        out = {
+            "vx_m_s": cols[f"vx_{which}_m_s"][i],
+            "vy_m_s": cols[f"vy_{which}_m_s"][i],
+            "vz_m_s": cols[f"vz_{which}_m_s"][i],
+            "yaw_rate_rad_s": cols[f"yaw_rate_{which}_rad_s"][i],
+            "a_cmd_m_s2": cols[f"a_{which}_m_s2"][i],
+        }
+        if companion_log or which == "replayed":
+            out.update(phase=phase, k1=cols[f"k1_{which}"][i], k2=cols[f"k2_{which}"][i])
+        return {k: (_json_float(v) if isinstance(v, float) else v) for k, v in out.items()}
+
+    return {
+        "time_s": float(tk.t_s),
+        "tick": int(tk.tick),
+        "reasons": reasons,
+        "yaw_rate_diff_rad_s": _json_float(cols["yaw_rate_diff_rad_s"][i]),
+        "vel_diff_m_s": _json_float(cols["vel_diff_m_s"][i]),
+        "logged": side("logged", phase_logged),
+        "replayed": side("replayed", phase_replayed),
+    }
+
+
+def _json_float(value) -> float | None:
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _per_phase(cols: dict, phases: list[str]) -> dict[str, dict]:
+    names = np.asarray(phases, dtype=object)
+    out: dict[str, dict] = {}
+    for name in dict.fromkeys(phases):
+        mask = (names == name) & cols["compared"]
+        d_yaw = cols["yaw_rate_diff_rad_s"][mask]
+        d_vel = cols["vel_diff_m_s"][mask]
+        if d_yaw.size == 0:
+            out[str(name)] = {"steps": 0, "yaw_rate_max_rad_s": None, "yaw_rate_rms_rad_s": None,
+                              "vel_max_m_s": None, "vel_rms_m_s": None}
+            continue
+        out[str(name)] = {
+            "steps": int(d_yaw.size),
+            "yaw_rate_max_rad_s": _json_float(np.max(d_yaw)),
+            "yaw_rate_rms_rad_s": _json_float(np.sqrt(np.mean(d_yaw * d_yaw))),
+            "vel_max_m_s": _json_float(np.max(d_vel)),
+            "vel_rms_m_s": _json_float(np.sqrt(np.mean(d_vel * d_vel))),
+        }
+    return out
+
+
+def _switches(t_s: np.ndarray, phases: list[str]) -> list[dict]:
+    out = []
+    for i in range(1, len(phases)):
+        if phases[i] != phases[i - 1]:
+            out.append({"time_s": float(t_s[i]), "from": phases[i - 1], "to": phases[i]})
+    return out
+
+
+def _tracking(cols: dict, phases: list[str]) -> dict:
+    """Tracking figures of the flight itself, over the ticks with a cross-track value."""
+    d = cols["crosstrack_m"]
+    a = cols["a_logged_m_s2"]
+    keep = np.isfinite(d) & np.isfinite(a)
+    names = [p for p, k in zip(phases, keep) if k]
+    m = tracking_metrics(cols["t_s"][keep], d[keep], a[keep], names)
+    return {k: (_json_float(v) if isinstance(v, float) else v) for k, v in m.items()}
+
+
+# ------------------------------------------------------------------------------ one call
+
+def replay_log(
+    tlog: str | Path,
+    mission: str | Path | Mission | None = None,
+    tolerance: Tolerance = Tolerance(),
+    on_warning: Callable[[LogWarning], None] | None = None,
+    progress: bool | None = None,
+    guidance_factory: Callable[[Mission], object] = default_guidance,
+) -> ReplayResult:
+    """Read ``tlog``, load its mission, replay it. Raises :class:`LogError` / ``MissionError``."""
+    started = time.perf_counter()
+    flight = read_flight(tlog, on_warning=on_warning, progress=progress)
+    read_s = time.perf_counter() - started
+    if not isinstance(mission, Mission):
+        mission = load_mission(find_mission(tlog, mission))
+    result = replay_flight(flight, mission, tolerance, guidance_factory=guidance_factory, progress=progress)
+    result.timing_s["read_s"] = read_s
+    result.timing_s["total_s"] = time.perf_counter() - started
+    return result
