@@ -195,3 +195,13 @@ def test_library_circle_path_gives_the_same_command_as_the_hand_circle(name, mak
     a_lib = make(lib).step(0.0, state).a_cmd_m_s2
     a_hand = make(CirclePath(r)).step(0.0, state).a_cmd_m_s2
     assert a_lib == pytest.approx(a_hand, rel=1e-4, abs=1e-6)
+
+
+def test_pure_pursuit_past_the_end_of_an_open_path_continues_it_straight():
+    # Line to (1000, 0); vehicle at (995, 1): goal E + u t at distance 10 with w = E - P = (5, -1),
+    # u = -5 + sqrt(25 - 26 + 100) -> goal (1000 + sqrt(99) - 5, 0).
+    law = PurePursuitGuidance(LinePath(length_m=1000.0), PurePursuitParams(lookahead_m=10.0))
+    out = law.step(0.0, VehicleState(995.0, 1.0, 0.0, V))
+    gx = 995.0 + math.sqrt(99.0)
+    assert out.lookahead_xy_m == pytest.approx((gx, 0.0), abs=1e-6)
+    assert out.a_cmd_m_s2 == pytest.approx(2 * V**2 * math.sin(math.atan2(-1.0, gx - 995.0)) / 10.0, rel=1e-6)

@@ -8,6 +8,7 @@ collects the few derived quantities they share, so that each law file reads like
   (positive when the vehicle is LEFT of the path, i.e. on the side the left normal points to);
 - :func:`lookahead_s`: the first arc length forward of ``s_from`` whose point lies at Euclidean
   distance ``L`` from the vehicle (the look-ahead point of L1 guidance and pure pursuit);
+- :func:`goal_point`: the same point, continuing an open path straight past its end;
 - :func:`wrap_pi` and :func:`is_finished` (an open path is finished once the projection reaches
   its end).
 """
@@ -84,8 +85,8 @@ def lookahead_s(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> fl
     """First arc length forward of ``s_from_m`` at Euclidean distance ``l_m`` from (x, y).
 
     Uses ``path.lookahead`` when the path has it (same contract). Otherwise marches forward in
-    steps of ``l_m / 4`` until a point at least ``l_m`` away is found, then bisects the bracket (24 halvings, far below a millimetre). Returns ``None`` when there is no
-    such point: either the vehicle is farther than ``l_m`` from the point at ``s_from_m`` (the
+    steps of ``l_m / 4`` until a point at least ``l_m`` away is found, then bisects the bracket
+    (24 halvings, far below a millimetre). Returns ``None`` when there is no such point: either the vehicle is farther than ``l_m`` from the point at ``s_from_m`` (the
     look-ahead circle does not reach the path there), or the whole rest of an open path lies
     within ``l_m`` of the vehicle (it is about to finish).
 
@@ -122,6 +123,32 @@ def lookahead_s(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> fl
         else:
             lo = mid
     return hi
+
+
+def goal_point(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> tuple[float, float] | None:
+    """The look-ahead point at distance ``l_m``, continuing an open path straight past its end.
+
+    Near the end of an open path the whole rest of it lies within ``l_m`` of the vehicle and
+    there is no look-ahead point; aiming at the end point itself would make ``sin(eta) / dist``
+    blow up as the vehicle arrives. As ArduPilot and PX4 do past the last waypoint, the path is
+    then continued along its end tangent ``t``: the goal is ``E + u t`` at distance ``l_m``, with
+    ``w = E - P`` and ``u = -(w.t) + sqrt((w.t)^2 - |w|^2 + l^2)``. Returns ``None`` when the
+    vehicle is farther than ``l_m`` from the path ahead (no look-ahead point exists).
+    """
+    s = lookahead_s(path, x_m, y_m, l_m, s_from_m)
+    if s is not None:
+        return _xy(path.point(wrap_s(path, s)))
+    if path.closed:
+        return None
+    ex, ey = _xy(path.point(path.length_m))
+    wx, wy = ex - x_m, ey - y_m
+    w2 = wx * wx + wy * wy
+    if w2 > l_m * l_m:
+        return None
+    tx, ty = _xy(path.tangent(path.length_m))
+    wt = wx * tx + wy * ty
+    u = -wt + math.sqrt(max(wt * wt - w2 + l_m * l_m, 0.0))
+    return ex + u * tx, ey + u * ty
 
 
 def is_finished(path, s_m: float) -> bool:

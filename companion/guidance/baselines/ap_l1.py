@@ -25,7 +25,8 @@ L1 point) and a curvature part (chord relative to the tangent at the closest poi
 capture limit and the cross-track integrator act on the capture part only; on a straight line
 the chord is the tangent and this is ArduPilot's ``update_waypoint`` term for term. When the
 vehicle is farther than L1 from the path there is no L1 point; ArduPilot then flies the clamped
-capture angle (``sin Nu1 = +-0.7071``), and so do we.
+capture angle (``sin Nu1 = +-0.7071``), and so do we. Past the end of an open path the path is
+continued straight along its end tangent (``baselines._frame.goal_point``).
 
 Cross-track integrator (``NAVL1_XTRACK_I``, default 0.02): while the capture angle is within
 5 deg, ``I += Nu1 * XTRACK_I * dt`` with I clamped to +-0.1 rad, and ``Nu1 += I``. The time step
@@ -41,7 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.baselines._frame import is_finished, lookahead_s, path_frame, wrap_pi, wrap_s
+from companion.guidance.baselines._frame import goal_point, is_finished, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 CAPTURE_LIMIT_RAD = math.pi / 4.0  # ArduPilot: sine_Nu1 constrained to +-0.7071
@@ -122,15 +123,14 @@ class ApL1Guidance:
         self._s_hint = f.s_m
 
         nu2 = wrap_pi(f.tangent_rad - state.course_rad)  # velocity -> tangent at the closest point
-        s_l1 = lookahead_s(self.path, state.x_m, state.y_m, l1, f.s_m)
-        if s_l1 is None:
-            l1_xy = None
+        l1_xy = goal_point(self.path, state.x_m, state.y_m, l1, f.s_m)
+        if l1_xy is None:
             curve_part = 0.0
             capture = -math.copysign(CAPTURE_LIMIT_RAD, f.crosstrack_m) if f.crosstrack_m else 0.0
         else:
-            lx, ly = (float(c) for c in self.path.point(wrap_s(self.path, s_l1)))
-            l1_xy = (lx, ly)
-            chord = math.atan2(ly - f.py_m, lx - f.px_m) if s_l1 > f.s_m + 1e-9 else f.tangent_rad
+            lx, ly = l1_xy
+            chord_len = math.hypot(lx - f.px_m, ly - f.py_m)
+            chord = math.atan2(ly - f.py_m, lx - f.px_m) if chord_len > 1e-9 else f.tangent_rad
             curve_part = wrap_pi(chord - f.tangent_rad)
             capture = wrap_pi(math.atan2(ly - state.y_m, lx - state.x_m) - chord)
         capture = min(max(capture, -CAPTURE_LIMIT_RAD), CAPTURE_LIMIT_RAD)

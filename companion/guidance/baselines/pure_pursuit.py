@@ -14,7 +14,8 @@ Honest note: this is the same expression as Park's constant-L1 law (Park 2007 pr
 guidance as a relative of pure pursuit). The two differ only when the vehicle is farther than
 ``L_d`` from the path: pure pursuit then aims at the closest path point (the goal search never
 leaves it), whereas the two-phase law runs its mid-course phase. The benchmark keeps it as the
-law a mobile-robotics user would pick, swept over ``L_d``.
+law a mobile-robotics user would pick, swept over ``L_d``. Past the end of an open path the goal
+is taken on the straight continuation of the end tangent (``baselines._frame.goal_point``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.baselines._frame import is_finished, lookahead_s, path_frame, wrap_pi, wrap_s
+from companion.guidance.baselines._frame import goal_point, is_finished, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 
@@ -64,14 +65,11 @@ class PurePursuitGuidance:
         ld = p.lookahead_m + p.speed_gain_s * v
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
         self._s_hint = f.s_m
-        s_goal = lookahead_s(self.path, state.x_m, state.y_m, ld, f.s_m)
-        if s_goal is None:
-            if math.hypot(state.x_m - f.px_m, state.y_m - f.py_m) >= ld or is_finished(self.path, f.s_m):
-                gx, gy = f.px_m, f.py_m  # far from the path: the goal search stays at the closest point
-            else:  # the rest of an open path is within L_d: chase its end
-                gx, gy = (float(c) for c in self.path.point(self.path.length_m))
+        goal = goal_point(self.path, state.x_m, state.y_m, ld, f.s_m)
+        if goal is None:  # far from the path: the goal search stays at the closest point
+            gx, gy = f.px_m, f.py_m
         else:
-            gx, gy = (float(c) for c in self.path.point(wrap_s(self.path, s_goal)))
+            gx, gy = goal
         dx, dy = gx - state.x_m, gy - state.y_m
         dist = math.hypot(dx, dy)
         if dist < 1e-9:
