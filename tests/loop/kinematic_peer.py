@@ -1,0 +1,136 @@
+"""A small threaded autopilot for loop tests: PX4 or ArduPilot modes, instant velocity following.
+
+It streams HEARTBEAT (5 Hz), LOCAL_POSITION_NED (50 Hz) and ATTITUDE (20 Hz) to the companion's
+udpin port, ACKs commands, obeys DO_SET_MODE / arming, and integrates the last velocity setpoint.
+Knobs for faults: ``drop_positions_at_s`` (stop the position stream, keep the rest),
+``mode_change_at_s`` (a "pilot" selects another mode), ``arm_refusals`` (refuse N arm requests
+with a STATUSTEXT reason).
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import threading
+import time
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+
+class _Out:
+    def __init__(self, sock, dest):
+        self.sock, self.dest = sock, dest
+
+    def write(self, buf):
+        try:
+            self.sock.sendto(bytes(buf), self.dest)
+        except OSError:
+            pass
+
+
+PX4_OFFBOARD = 6 << 16
+PX4_HOLD = (4 << 16) | (3 << 24)
+
+
+class KinematicAutopilot(threading.Thread):
+    def __init__(self, dest, autopilot="px4", x=0.0, y=0.0, alt=10.0, vn=0.0, ve=0.0, armed=True,
+                 drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0):
+        super().__init__(daemon=True)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.002)
+        self.mav = mavlink2.MAVLink(_Out(self.sock, dest), srcSystem=1, srcComponent=1)
+        self.mav.robust_parsing = True
+        self.px4 = autopilot == "px4"
+        self.ap_code = 12 if self.px4 else 3
+        self.guided_mode = PX4_OFFBOARD if self.px4 else 4
+        self.hold_mode = PX4_HOLD if self.px4 else 5
+        self.custom_mode = self.hold_mode
+        self.armed = armed
+        self.pos = [x, y, -alt]
+        self.vel = [vn, ve, 0.0]
+        self.drop_positions_at_s = drop_positions_at_s
+        self.mode_change_at_s = mode_change_at_s
+        self.arm_refusals = arm_refusals
+        self.stop_flag = threading.Event()
+        self.setpoints = []  # (t_s, msg) received
+        self.commands = []
+        self.positions_sent = []  # time_boot_ms of every LOCAL_POSITION_NED sent
+        self.t0 = time.monotonic()
+        self.last_setpoint_s = -math.inf
+        self.offboard_entered_s = None
+
+    def now(self):
+        return time.monotonic() - self.t0
+
+    def run(self):
+        next_pos = next_att = next_hb = 0.0
+        last = self.now()
+        while not self.stop_flag.is_set():
+            t = self.now()
+            dt, last = t - last, t
+            self._receive(t)
+            if self.custom_mode == self.guided_mode and self.armed and t - self.last_setpoint_s < 0.5:
+                for i in range(3):
+                    self.pos[i] += self.vel[i] * dt
+            else:
+                self.vel = [0.0, 0.0, 0.0]
+            if self.mode_change_at_s is not None and self.offboard_entered_s is not None and \
+                    t - self.offboard_entered_s >= self.mode_change_at_s and self.custom_mode == self.guided_mode:
+                self.custom_mode = self.hold_mode
+            tb = int(t * 1000)
+            if t >= next_hb:
+                base = 1 | (128 if self.armed else 0)
+                self.mav.heartbeat_send(2, self.ap_code, base, self.custom_mode, 4)
+                next_hb = t + 0.2
+            if t >= next_pos:
+                dropped = self.drop_positions_at_s is not None and self.offboard_entered_s is not None and \
+                    t - self.offboard_entered_s >= self.drop_positions_at_s
+                if not dropped:
+                    self.mav.local_position_ned_send(tb, *self.pos, *self.vel)
+                    self.positions_sent.append(tb)
+                next_pos = t + 0.02
+            if t >= next_att:
+                yaw = math.atan2(self.vel[1], self.vel[0]) if math.hypot(self.vel[0], self.vel[1]) > 0.1 else 0.0
+                self.mav.attitude_send(tb, 0.0, 0.0, yaw, 0.0, 0.0, 0.0)
+                next_att = t + 0.05
+
+    def _receive(self, t):
+        try:
+            data, _ = self.sock.recvfrom(65535)
+        except (socket.timeout, BlockingIOError):
+            return
+        except OSError:
+            return
+        for m in self.mav.parse_buffer(data) or []:
+            mt = m.get_type()
+            if mt == "SET_POSITION_TARGET_LOCAL_NED":
+                self.setpoints.append((t, m))
+                self.last_setpoint_s = t
+                self.vel = [m.vx, m.vy, m.vz]
+            elif mt == "COMMAND_LONG":
+                self.commands.append((t, m))
+                result = 0
+                if m.command == 176:
+                    mode = int(m.param2) << 16 | int(m.param3) << 24 if self.px4 else int(m.param2)
+                    if mode == self.guided_mode and self.px4 and t - self.last_setpoint_s > 0.5:
+                        result = 1
+                    else:
+                        self.custom_mode = mode
+                        if mode == self.guided_mode:
+                            self.offboard_entered_s = t
+                elif m.command == 22:
+                    self.pos[2] = -float(m.param7)
+                elif m.command == 400:
+                    if self.arm_refusals > 0:
+                        self.arm_refusals -= 1
+                        self.mav.statustext_send(4, b"PreArm: EKF not ready")
+                        result = 1
+                    else:
+                        self.armed = bool(m.param1)
+                self.mav.command_ack_send(m.command, result)
+
+    def stop(self):
+        self.stop_flag.set()
+        self.join(2.0)
+        self.sock.close()

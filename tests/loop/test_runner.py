@@ -1,0 +1,157 @@
+"""The flight runner against a small in-test autopilot over loopback UDP (wall clock).
+
+A stub guidance on a straight path keeps these tests about the runner: modes, failsafes,
+recording. The real guidance and the mock autopilot are exercised in tests/e2e.
+"""
+
+import math
+
+import pytest
+from pymavlink import mavutil
+
+from companion.errors import FlightAborted, LinkError
+from companion.geometry.paths import waypoint_path
+from companion.guidance.types import GuidanceOutput
+from companion.loop.runner import FlightRunner, FlyOptions, Status
+from companion.mission import Mission
+from kinematic_peer import PX4_OFFBOARD, KinematicAutopilot
+
+
+class StraightLineGuidance:
+    """Pull back to the x axis; finished at x >= finish_x. Records the states it was given."""
+
+    def __init__(self, finish_x_m=1e9):
+        self.finish_x_m = finish_x_m
+        self.calls = []
+
+    def step(self, t_s, state):
+        self.calls.append((t_s, state))
+        phase = "finished" if state.x_m >= self.finish_x_m else "close_range"
+        return GuidanceOutput(a_cmd_m_s2=-0.5 * state.y_m, phase=phase, crosstrack_m=state.y_m,
+                              s_proj_m=state.x_m)
+
+
+def line_mission():
+    path = waypoint_path([(0.0, 0.0), (100.0, 0.0), (200.0, 0.0)])
+    return Mission(name="line", path=path, speed_m_s=5.0, altitude_m=10.0, source_text="name: line\n")
+
+
+def fly(port, tmp_path, peer, guidance, **kw):
+    opts = dict(connect=f"udpin:127.0.0.1:{port}", rate_hz=50.0, tlog_path=str(tmp_path / "f.tlog"),
+                heartbeat_timeout_s=5.0)
+    opts.update(kw)
+    peer.start()
+    runner = FlightRunner(line_mission(), FlyOptions(**opts), Status(quiet=True), guidance=guidance)
+    try:
+        runner.run()
+    finally:
+        peer.stop()
+    return runner
+
+
+def tlog_messages(path):
+    conn = mavutil.mavlink_connection(str(path))
+    out = []
+    while True:
+        m = conn.recv_match()
+        if m is None:
+            return out
+        out.append(m)
+
+
+def test_px4_flight_streams_a_second_before_offboard_and_records_every_setpoint(free_udp_port, tmp_path):
+    # 1 m north of the path (NED x = north), flying east at 5 m/s
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", x=1.0, y=0.0, ve=5.0)
+    g = StraightLineGuidance(finish_x_m=8.0)
+    runner = fly(free_udp_port, tmp_path, peer, g)
+    s = runner.summary
+    assert s["exit"] == "finished"
+    mode_cmds = [(t, m) for t, m in peer.commands if m.command == 176]
+    t_offboard = next(t for t, m in mode_cmds if int(m.param2) == 6)
+    first_sp = peer.setpoints[0][0]
+    assert t_offboard - first_sp >= 0.95  # PX4 needs the stream flowing first (1 s, clock jitter)
+    # On finish: hold = AUTO.LOITER (main 4, sub 3)
+    assert any(int(m.param2) == 4 and int(m.param3) == 3 for _, m in mode_cmds)
+    # Every setpoint sent is in the tlog, and one DEBUG_FLOAT_ARRAY per tick.
+    msgs = tlog_messages(tmp_path / "f.tlog")
+    sent = [m for m in msgs if m.get_type() == "SET_POSITION_TARGET_LOCAL_NED"]
+    debug = [m for m in msgs if m.get_type() == "DEBUG_FLOAT_ARRAY"]
+    assert len(sent) == runner.setpoints_sent == len(peer.setpoints)
+    assert len(debug) == s["ticks"] and [int(d.array_id) for d in debug] == list(range(s["ticks"]))
+    assert all(m.type_mask == 1479 and m.coordinate_frame == 1 for m in sent)
+    assert (tmp_path / "f.tlog.mission.yaml").read_text() == "name: line\n"
+    # The guidance was given ENU: 1 m north is y = +1 (left of the eastbound path), course east.
+    first = g.calls[0][1]
+    assert first.y_m == pytest.approx(1.0, abs=1e-6)
+    assert first.course_rad == pytest.approx(0.0, abs=1e-6) and first.speed_m_s == 5.0
+    assert s["d_rms_m"] >= 0 and s["samples"] > 0
+
+
+def test_dropped_position_stream_holds_within_one_tick_of_the_stale_limit(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", ve=5.0, drop_positions_at_s=0.5)
+    g = StraightLineGuidance()
+    runner = fly(free_udp_port, tmp_path, peer, g, stale_s=0.3, max_duration_s=1.5)
+    r = runner.record
+    holds = [i for i, h in enumerate(r.hold) if h]
+    assert holds, "no hold after the position stream stopped"
+    first = holds[0]
+    period = 1.0 / 50.0
+    # The hold starts at the first tick past the limit (0.3 s + one tick, plus scheduling jitter).
+    assert 0.3 < r.sample_age_s[first] <= 0.3 + period + 0.03
+    # Never a setpoint computed from a position older than the stale limit.
+    assert all(age <= 0.3 for age, h in zip(r.sample_age_s, r.hold) if not h)
+    # The hold setpoints on the wire are zero velocity and zero yaw rate.
+    last = peer.setpoints[-1][1]
+    assert (last.vx, last.vy, last.yaw_rate) == (0.0, 0.0, 0.0)
+
+
+def test_pilot_mode_change_stops_commanding_and_never_switches_back(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", ve=5.0, mode_change_at_s=0.5)
+    with pytest.raises(FlightAborted, match="pilot override"):
+        fly(free_udp_port, tmp_path, peer, StraightLineGuidance())
+    t_change = peer.offboard_entered_s + 0.5
+    late = [t for t, _ in peer.setpoints if t > t_change + 0.25]  # heartbeat period 0.2 s + a tick
+    assert late == []
+    offboard_requests = [t for t, m in peer.commands if m.command == 176 and int(m.param2) == 6]
+    assert len(offboard_requests) == 1  # never asked for OFFBOARD again
+
+
+def test_ardupilot_guided_then_arm_retries_with_reason_then_takeoff(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "ardupilot", ve=0.0, alt=0.0, armed=False,
+                              arm_refusals=2)
+    runner = fly(free_udp_port, tmp_path, peer, StraightLineGuidance(finish_x_m=3.0), arm=True,
+                 arm_timeout_s=20.0, max_duration_s=5.0)
+    order = [int(m.command) for _, m in peer.commands if m.command in (176, 400, 22)]
+    assert order.index(176) < order.index(400) < order.index(22)
+    assert order.count(400) == 3  # two refusals, then accepted
+    assert any("PreArm: EKF not ready" in e for e in runner.events)
+    assert any(m.command == 176 and int(m.param2) == 4 for _, m in peer.commands)  # GUIDED = 4
+
+
+def test_refuses_to_start_far_from_the_path(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", x=0.0, y=1000.0)  # 1 km north
+    with pytest.raises(FlightAborted, match="max-start-distance"):
+        fly(free_udp_port, tmp_path, peer, StraightLineGuidance())
+    assert peer.setpoints == []
+
+
+def test_no_heartbeat_is_a_clear_link_error(free_udp_port, tmp_path):
+    opts = FlyOptions(connect=f"udpin:127.0.0.1:{free_udp_port}", rate_hz=50.0,
+                      tlog_path=str(tmp_path / "f.tlog"), heartbeat_timeout_s=0.5)
+    with pytest.raises(LinkError, match="no HEARTBEAT"):
+        FlightRunner(line_mission(), opts, Status(quiet=True), guidance=StraightLineGuidance()).run()
+    assert (tmp_path / "f.tlog").exists()
+
+
+def test_heartbeat_loss_stops_and_leaves_a_readable_tlog(free_udp_port, tmp_path):
+    import threading
+
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", ve=5.0)
+    timer = threading.Timer(2.0, peer.stop_flag.set)  # the autopilot goes silent after 2 s
+    timer.start()
+    with pytest.raises(LinkError, match="heartbeat lost"):
+        fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), link_timeout_s=0.5)
+    timer.cancel()
+    msgs = tlog_messages(tmp_path / "f.tlog")
+    assert any(m.get_type() == "DEBUG_FLOAT_ARRAY" for m in msgs)
+    assert any(m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 191 for m in msgs)
