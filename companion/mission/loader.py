@@ -147,6 +147,8 @@ def check_mission_text(text: str, source_name: str = "<mission>"):
     problems = [f"{source_name}: {where}: {msg}" for where, msg in found]
     warnings: list[str] = []
     builder = _Builder(clean, source_name, problems, warnings)
+    builder.path_schema_ok = not any(where == "path" or where.startswith(("path.", "path["))
+                                     for where, _ in found)
     mission = builder.build(text)
     if problems:
         return None, problems, warnings
@@ -162,6 +164,7 @@ class _Builder:
         self.problems = problems
         self.warnings = warnings
         self.frame = doc.get("frame") or "local_enu"
+        self.path_schema_ok = True  # False when the schema already reported a problem in path
 
     def problem(self, where: str, message: str) -> None:
         self.problems.append(f"{self.source}: {where}: {message}")
@@ -185,7 +188,7 @@ class _Builder:
     def build(self, text: str) -> Mission | None:
         doc = self.doc
         origin = self.build_origin()
-        path = self.build_path(origin) if doc.get("path") else None
+        path = self.build_path(origin) if doc.get("path") and self.path_schema_ok else None
         guidance = self.build_guidance()
         start = self.build_start()
         if path is not None and guidance is not None:

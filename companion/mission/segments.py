@@ -121,7 +121,7 @@ def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float
             report(f"{where}.closed", f"expected segments turning a whole number of turns for a loop, "
                    f"got {turn_deg:.6g} deg")
             ok = False
-        if gap > CLOSURE_TOLERANCE * total + 0.01:
+        elif gap > CLOSURE_TOLERANCE * total + 0.01:
             report(f"{where}.closed", f"expected the segments to end where they start, got a gap of "
                    f"{gap:.4g} m")
             ok = False
