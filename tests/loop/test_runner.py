@@ -80,10 +80,12 @@ def test_px4_flight_streams_a_second_before_offboard_and_records_every_setpoint(
     assert len(debug) == s["ticks"] and [int(d.array_id) for d in debug] == list(range(s["ticks"]))
     assert all(m.type_mask == 1479 and m.coordinate_frame == 1 for m in sent)
     assert (tmp_path / "f.tlog.mission.yaml").read_text() == "name: line\n"
-    # The guidance was given ENU: 1 m north is y = +1 (left of the eastbound path), course east.
+    # The guidance was given ENU: 1 m north is y = +1 (left of the eastbound path). The vehicle
+    # hovered (zero velocity) until OFFBOARD, so the course falls back to its yaw: NED 0 (north)
+    # is ENU +pi/2.
     first = g.calls[0][1]
     assert first.y_m == pytest.approx(1.0, abs=1e-6)
-    assert first.course_rad == pytest.approx(0.0, abs=1e-6) and first.speed_m_s == 5.0
+    assert first.course_rad == pytest.approx(math.pi / 2, abs=1e-6) and first.speed_m_s == 5.0
     assert s["d_rms_m"] >= 0 and s["samples"] > 0
 
 
