@@ -1,0 +1,132 @@
+"""The ``sitl-mock`` command: parse options, build the mock, run it until stopped.
+
+``main(argv) -> int`` is separate from :func:`entry_point` so tests can call it without a
+subprocess. Exit codes: 0 after a clean stop (SIGINT, SIGTERM or ``--duration-s``), 2 for bad
+options or a link / tlog / key file that cannot be opened (one line on stderr, no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import threading
+
+from sitl_mock.autopilot import MockAutopilot, MockConfig
+from sitl_mock.links import load_signing_key, parse_link
+from sitl_mock.vehicle import VehicleParams
+
+
+def _floats(text: str, count: int, option: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"{option} {text!r}: expected {count} comma-separated numbers") from None
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{option} {text!r}: expected {count} comma-separated finite numbers")
+    return values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sitl-mock",
+        description="Mock PX4/ArduPilot autopilot speaking MAVLink 2 over UDP, with a point-mass vehicle.")
+    add = parser.add_argument
+    add("--autopilot", choices=("px4", "ardupilot"), default="px4")
+    add("--vehicle", choices=("copter", "plane", "rover"), default="copter")
+    add("--link", action="append", default=[], metavar="udpout:HOST:PORT|udpin:HOST:PORT",
+        help="link string; repeat for several links (default udpout:127.0.0.1:14540)")
+    add("--sysid", type=int, default=1)
+    add("--compid", type=int, default=1)
+    add("--speedup", type=float, default=1.0, help="simulated seconds per wall-clock second")
+    add("--physics-hz", type=float, default=400.0)
+    add("--seed", type=int, default=0, help="seed of the position noise")
+    add("--start-ned", default="0,0", metavar="N,E", help="start position north,east (m) from the origin")
+    add("--start-alt-m", type=float, default=0.0, help="start height above ground (m)")
+    add("--start-yaw-deg", type=float, default=0.0)
+    add("--start-airborne", action="store_true", help="start armed, flying, in the hold mode")
+    add("--origin", default=None, metavar="LAT,LON,ALT", help="geodetic origin of the local frame")
+    add("--tau-vel-s", type=float, default=0.3)
+    add("--tau-yaw-rate-s", type=float, default=0.3)
+    add("--tau-roll-s", type=float, default=0.5, help="plane roll time constant")
+    add("--a-max-m-s2", type=float, default=None, help="acceleration limit (default copter 5, rover 3, plane 5)")
+    add("--yaw-rate-max-deg-s", type=float, default=None, help="yaw-rate limit (default copter 90, rover 120)")
+    add("--roll-max-deg", type=float, default=45.0, help="plane bank-angle limit")
+    add("--airspeed-m-s", type=float, default=15.0, help="plane cruise airspeed")
+    add("--airspeed-min-m-s", type=float, default=10.0)
+    add("--wind-ned-m-s", default="0,0", metavar="N,E")
+    add("--pos-noise-m", type=float, default=0.0)
+    add("--offboard-loss-s", type=float, default=0.5, help="PX4 COM_OF_LOSS_T")
+    add("--guided-timeout-s", type=float, default=3.0, help="ArduPilot GUID_TIMEOUT")
+    add("--signing-key-file", default=None, metavar="F", help="64 hex characters, or a passphrase")
+    add("--tlog", default=None, metavar="FILE")
+    add("--duration-s", type=float, default=None, help="stop after this much simulated time")
+    add("--quiet", action="store_true", help="no event log on stderr (the ready and summary lines stay)")
+    return parser
+
+
+def config_from_args(args: argparse.Namespace) -> MockConfig:
+    """Turn parsed options into a validated :class:`MockConfig` (ValueError with a one-line message)."""
+    links = tuple(parse_link(text) for text in (args.link or ["udpout:127.0.0.1:14540"]))
+    start_ned = _floats(args.start_ned, 2, "--start-ned")
+    wind = _floats(args.wind_ned_m_s, 2, "--wind-ned-m-s")
+    origin = _floats(args.origin, 3, "--origin") if args.origin else None
+    a_max = args.a_max_m_s2 if args.a_max_m_s2 is not None else (3.0 if args.vehicle == "rover" else 5.0)
+    yaw_max = args.yaw_rate_max_deg_s if args.yaw_rate_max_deg_s is not None else (
+        120.0 if args.vehicle == "rover" else 90.0)
+    try:
+        vehicle = VehicleParams(
+            kind=args.vehicle, tau_vel_s=args.tau_vel_s, tau_yaw_rate_s=args.tau_yaw_rate_s, a_max_m_s2=a_max,
+            yaw_rate_max_rad_s=math.radians(yaw_max), v_max_m_s=5.0 if args.vehicle == "rover" else 12.0,
+            airspeed_cruise_m_s=args.airspeed_m_s, airspeed_min_m_s=args.airspeed_min_m_s,
+            airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,
+            roll_max_rad=math.radians(args.roll_max_deg), wind_ned_m_s=wind, pos_noise_m=args.pos_noise_m,
+            seed=args.seed)
+    except ValueError as err:
+        raise ValueError(f"vehicle parameters: {err}") from None
+    key = load_signing_key(args.signing_key_file) if args.signing_key_file else None
+    return MockConfig(
+        autopilot=args.autopilot, vehicle=args.vehicle, links=links, sysid=args.sysid, compid=args.compid,
+        speedup=args.speedup, physics_hz=args.physics_hz, seed=args.seed, start_ned_m=start_ned,
+        start_alt_m=args.start_alt_m, start_yaw_deg=args.start_yaw_deg, start_airborne=args.start_airborne,
+        origin=origin, vehicle_params=vehicle, offboard_loss_s=args.offboard_loss_s,
+        guided_timeout_s=args.guided_timeout_s, signing_key=key, tlog_path=args.tlog, duration_s=args.duration_s,
+        quiet=args.quiet)
+
+
+def main(argv: list[str] | None = None, stop_event: threading.Event | None = None) -> int:
+    """Run the mock; returns the exit code.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default ``sys.argv[1:]``).
+    stop_event : threading.Event, optional
+        Set it to stop the mock from another thread (signals are only installed in the main thread).
+    """
+    args = build_parser().parse_args(argv)
+    try:
+        config = config_from_args(args)
+        mock = MockAutopilot(config)
+    except ValueError as err:
+        print(f"sitl-mock: error: {err}", file=sys.stderr)
+        return 2
+    if stop_event is not None:
+        mock.stop_event = stop_event
+    if threading.current_thread() is threading.main_thread():
+        def _stop(signum, frame):  # noqa: ARG001 - signal handler signature
+            mock.stop_event.set()
+        signal.signal(signal.SIGINT, _stop)
+        signal.signal(signal.SIGTERM, _stop)
+    mock.announce()
+    try:
+        code = mock.run()
+    except BrokenPipeError:
+        code = 1
+    print(mock.summary(), file=sys.stderr, flush=True)
+    return code
+
+
+def entry_point() -> None:
+    sys.exit(main())

@@ -1,0 +1,333 @@
+"""Point-mass vehicle model with a deliberately non-ideal inner loop.
+
+The mock autopilot's flight logic (``sitl_mock.flight``) turns modes and setpoints into inner-loop
+commands (a velocity in NED for copters and rovers; a bank angle, airspeed and climb rate for
+planes); this module integrates the vehicle's response at a fixed physics step.
+
+Model
+-----
+Copter
+    The velocity follows the commanded velocity through a first-order lag of time constant
+    ``tau_vel_s`` (exact discretisation, so a step reaches 63.2 % after one time constant), with
+    the horizontal and the vertical acceleration each limited to ``a_max_m_s2``. The yaw rate follows
+    the commanded yaw rate through a first-order lag ``tau_yaw_rate_s``; the command is clipped to
+    ``yaw_rate_max_rad_s``. A multicopter's velocity controller holds ground velocity, so a steady
+    wind has no lasting effect on the track and is not modelled for copters.
+Plane
+    Constant airspeed (never below ``airspeed_min_m_s``), heading turning at ``g tan(roll) / V``
+    (coordinated turn, lateral acceleration ``g tan(roll)``), the roll angle following the command
+    through a first-order lag ``tau_roll_s`` with ``|roll| <= roll_max_rad``. The ground velocity
+    is the air velocity plus the steady wind.
+Rover
+    As the copter in the horizontal plane, always on the ground; the body points along the
+    ground track while it moves faster than 0.3 m/s.
+
+All state is plain floats so that one step costs a few microseconds; the model reads no clock
+and owns its random generator (seeded), so the same commands give the same track.
+
+Frames: positions and velocities are NED (x north, y east, z down) metres and m/s relative to the
+local origin; yaw is clockwise from north in radians, wrapped to (-pi, pi].
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass, field
+
+GRAVITY_M_S2 = 9.80665
+VEHICLE_KINDS = ("copter", "plane", "rover")
+# Below this ground speed a rover turns on the spot from yaw-rate commands instead of following its track.
+ROVER_TRACK_SPEED_M_S = 0.3
+
+
+def wrap_pi(angle_rad: float) -> float:
+    """Wrap an angle to the interval (-pi, pi]."""
+    wrapped = math.fmod(angle_rad + math.pi, 2.0 * math.pi)
+    if wrapped <= 0.0:
+        wrapped += 2.0 * math.pi
+    return wrapped - math.pi
+
+
+def _lag_gain(dt_s: float, tau_s: float) -> float:
+    """Fraction of the remaining error a first-order lag removes in one step (exact discretisation)."""
+    return 1.0 if tau_s <= 0.0 else 1.0 - math.exp(-dt_s / tau_s)
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Physical and inner-loop parameters of the mock vehicle.
+
+    Parameters
+    ----------
+    kind : str
+        ``"copter"``, ``"plane"`` or ``"rover"``.
+    tau_vel_s : float
+        Time constant of the first-order velocity response (copter, rover; plane climb rate).
+    tau_yaw_rate_s : float
+        Time constant of the yaw-rate response (copter, rover).
+    a_max_m_s2 : float
+        Acceleration limit, horizontal and vertical separately.
+    yaw_rate_max_rad_s : float
+        Largest yaw rate the inner loop will command.
+    v_max_m_s : float
+        Speed limit the flight logic applies to position control (copter, rover).
+    climb_rate_m_s, descent_rate_m_s : float
+        Vertical speeds used by takeoff, landing and altitude holds.
+    airspeed_cruise_m_s, airspeed_min_m_s, airspeed_max_m_s : float
+        Plane airspeed at start, and the band ``DO_CHANGE_SPEED`` may move it within.
+    tau_roll_s, roll_max_rad : float
+        Plane roll response time constant and bank-angle limit.
+    wind_ned_m_s : tuple of float
+        Steady horizontal wind (north, east) the plane drifts with.
+    pos_noise_m : float
+        Standard deviation of the Gaussian noise on each reported position axis.
+    seed : int
+        Seed of the noise generator.
+    """
+
+    kind: str = "copter"
+    tau_vel_s: float = 0.3
+    tau_yaw_rate_s: float = 0.3
+    a_max_m_s2: float = 5.0
+    yaw_rate_max_rad_s: float = math.radians(90.0)
+    v_max_m_s: float = 12.0
+    climb_rate_m_s: float = 2.5
+    descent_rate_m_s: float = 1.0
+    airspeed_cruise_m_s: float = 15.0
+    airspeed_min_m_s: float = 10.0
+    airspeed_max_m_s: float = 25.0
+    tau_roll_s: float = 0.5
+    roll_max_rad: float = math.radians(45.0)
+    wind_ned_m_s: tuple[float, float] = (0.0, 0.0)
+    pos_noise_m: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.kind not in VEHICLE_KINDS:
+            raise ValueError(f"vehicle kind: expected one of {', '.join(VEHICLE_KINDS)}, got {self.kind!r}")
+        positive = ("a_max_m_s2", "yaw_rate_max_rad_s", "v_max_m_s", "climb_rate_m_s", "descent_rate_m_s",
+                    "airspeed_min_m_s", "roll_max_rad")
+        for name in positive:
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
+        for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+        if not self.airspeed_min_m_s <= self.airspeed_cruise_m_s <= self.airspeed_max_m_s:
+            raise ValueError("airspeed: expected airspeed_min_m_s <= airspeed_cruise_m_s <= airspeed_max_m_s")
+        if self.roll_max_rad >= math.radians(80.0):
+            raise ValueError(f"roll_max_rad: expected below 80 deg, got {math.degrees(self.roll_max_rad):.1f} deg")
+        if len(self.wind_ned_m_s) != 2 or not all(math.isfinite(w) for w in self.wind_ned_m_s):
+            raise ValueError(f"wind_ned_m_s: expected two finite numbers, got {self.wind_ned_m_s!r}")
+
+
+@dataclass
+class VehicleState:
+    """Mutable true state of the vehicle (NED, metres, seconds, radians)."""
+
+    t_s: float = 0.0
+    pos_ned_m: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    vel_ned_m_s: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    acc_ned_m_s2: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    yaw_rad: float = 0.0
+    yaw_rate_rad_s: float = 0.0
+    roll_rad: float = 0.0
+    pitch_rad: float = 0.0
+    airspeed_m_s: float = 0.0
+    on_ground: bool = True
+
+
+class VehicleModel:
+    """Integrates one vehicle at a fixed step from inner-loop commands.
+
+    Parameters
+    ----------
+    params : VehicleParams
+        Physical parameters.
+    start_ned_m : tuple of float
+        Initial (north, east, down) position; ``down`` < 0 is above the ground (the ground is z = 0).
+    start_yaw_rad : float
+        Initial heading, clockwise from north.
+    airborne : bool
+        Start in the air (a plane then starts at cruise airspeed).
+
+    Examples
+    --------
+    >>> model = VehicleModel(VehicleParams(kind="copter"), (0.0, 0.0, -10.0), 0.0, airborne=True)
+    >>> for _ in range(400):
+    ...     model.step_multirotor(0.0025, (1.0, 0.0, 0.0), 0.0)
+    >>> round(model.state.vel_ned_m_s[0], 3)
+    1.0
+    """
+
+    def __init__(self, params: VehicleParams, start_ned_m: tuple[float, float, float], start_yaw_rad: float,
+                 airborne: bool) -> None:
+        self.params = params
+        self.state = VehicleState(pos_ned_m=list(start_ned_m), yaw_rad=wrap_pi(start_yaw_rad), on_ground=not airborne)
+        if params.kind == "rover":
+            self.state.pos_ned_m[2] = 0.0
+            self.state.on_ground = True
+        if params.kind == "plane" and airborne:
+            self.state.airspeed_m_s = params.airspeed_cruise_m_s
+            self._set_plane_ground_velocity(0.0)
+        self._rng = random.Random(params.seed)
+        self._noise_ned_m = (0.0, 0.0, 0.0)
+
+    def _draw_noise(self) -> None:
+        """Draw this step's position noise, so a report depends on the step, not on how often it is read."""
+        sigma = self.params.pos_noise_m
+        if sigma > 0.0:
+            g = self._rng.gauss
+            self._noise_ned_m = (g(0.0, sigma), g(0.0, sigma), g(0.0, sigma))
+
+    # ------------------------------------------------------------------ copter and rover
+    def step_multirotor(self, dt_s: float, vel_cmd_ned_m_s: tuple[float, float, float], yaw_rate_cmd_rad_s: float,
+                        acc_ff_ned_m_s2: tuple[float, float, float] = (0.0, 0.0, 0.0), grounded: bool = False) -> None:
+        """Advance a copter or rover by one step.
+
+        Parameters
+        ----------
+        dt_s : float
+            Physics step.
+        vel_cmd_ned_m_s : tuple of float
+            Commanded velocity (NED); a rover ignores the vertical component.
+        yaw_rate_cmd_rad_s : float
+            Commanded yaw rate (clipped to the limit).
+        acc_ff_ned_m_s2 : tuple of float
+            Acceleration feed-forward added to the lag response (then limited).
+        grounded : bool
+            Motors off (disarmed): the vehicle stays where it is if it is on the ground.
+        """
+        p = self.params
+        s = self.state
+        if grounded and s.on_ground:
+            s.vel_ned_m_s = [0.0, 0.0, 0.0]
+            s.acc_ned_m_s2 = [0.0, 0.0, 0.0]
+            s.yaw_rate_rad_s = 0.0
+            s.t_s += dt_s
+            self._draw_noise()
+            return
+        k = _lag_gain(dt_s, p.tau_vel_s)
+        v = s.vel_ned_m_s
+        dvx = (vel_cmd_ned_m_s[0] - v[0]) * k + acc_ff_ned_m_s2[0] * dt_s
+        dvy = (vel_cmd_ned_m_s[1] - v[1]) * k + acc_ff_ned_m_s2[1] * dt_s
+        dvz = 0.0 if p.kind == "rover" else (vel_cmd_ned_m_s[2] - v[2]) * k + acc_ff_ned_m_s2[2] * dt_s
+        dv_max = p.a_max_m_s2 * dt_s
+        dv_h = math.hypot(dvx, dvy)
+        if dv_h > dv_max:
+            dvx *= dv_max / dv_h
+            dvy *= dv_max / dv_h
+        dvz = max(-dv_max, min(dv_max, dvz))
+        s.acc_ned_m_s2 = [dvx / dt_s, dvy / dt_s, dvz / dt_s]
+        v_new = [v[0] + dvx, v[1] + dvy, 0.0 if p.kind == "rover" else v[2] + dvz]
+        # Trapezoidal position update: exact for constant acceleration over the step.
+        for i in range(3):
+            s.pos_ned_m[i] += 0.5 * (v[i] + v_new[i]) * dt_s
+        s.vel_ned_m_s = v_new
+        if p.kind == "rover":
+            s.pos_ned_m[2] = 0.0
+        elif s.pos_ned_m[2] >= 0.0 and s.vel_ned_m_s[2] >= 0.0:
+            # Touching the ground: vertical motion stops there.
+            s.pos_ned_m[2] = 0.0
+            s.vel_ned_m_s[2] = 0.0
+            s.on_ground = True
+        elif s.pos_ned_m[2] < -0.05:
+            s.on_ground = False
+        if s.on_ground and p.kind == "copter":
+            # A copter sitting on the ground does not slide about.
+            s.vel_ned_m_s[0] = s.vel_ned_m_s[1] = 0.0
+        r_cmd = max(-p.yaw_rate_max_rad_s, min(p.yaw_rate_max_rad_s, yaw_rate_cmd_rad_s))
+        if p.kind == "rover" and math.hypot(v_new[0], v_new[1]) > ROVER_TRACK_SPEED_M_S:
+            course = math.atan2(v_new[1], v_new[0])
+            s.yaw_rate_rad_s = wrap_pi(course - s.yaw_rad) / dt_s if dt_s > 0 else 0.0
+            s.yaw_rad = course
+        else:
+            s.yaw_rate_rad_s += (r_cmd - s.yaw_rate_rad_s) * _lag_gain(dt_s, p.tau_yaw_rate_s)
+            s.yaw_rad = wrap_pi(s.yaw_rad + s.yaw_rate_rad_s * dt_s)
+        # Attitude of a multicopter follows from the acceleration it produces (small-angle tilt).
+        if p.kind == "copter":
+            cy, sy = math.cos(s.yaw_rad), math.sin(s.yaw_rad)
+            a_fwd = cy * s.acc_ned_m_s2[0] + sy * s.acc_ned_m_s2[1]
+            a_right = -sy * s.acc_ned_m_s2[0] + cy * s.acc_ned_m_s2[1]
+            s.pitch_rad = -math.atan2(a_fwd, GRAVITY_M_S2)
+            s.roll_rad = math.atan2(a_right, GRAVITY_M_S2)
+        s.airspeed_m_s = math.hypot(v_new[0], v_new[1])
+        s.t_s += dt_s
+        self._draw_noise()
+
+    # ------------------------------------------------------------------ plane
+    def step_plane(self, dt_s: float, roll_cmd_rad: float, airspeed_cmd_m_s: float, climb_cmd_m_s: float,
+                   grounded: bool = False) -> None:
+        """Advance a plane by one step.
+
+        Parameters
+        ----------
+        dt_s : float
+            Physics step.
+        roll_cmd_rad : float
+            Commanded bank angle, positive right wing down (turns right, clockwise seen from above).
+        airspeed_cmd_m_s : float
+            Commanded airspeed; clipped to the airspeed band.
+        climb_cmd_m_s : float
+            Commanded climb rate (positive up).
+        grounded : bool
+            Engine off on the ground: the plane stays where it is.
+        """
+        p = self.params
+        s = self.state
+        if grounded and s.on_ground:
+            s.vel_ned_m_s = [0.0, 0.0, 0.0]
+            s.acc_ned_m_s2 = [0.0, 0.0, 0.0]
+            s.airspeed_m_s = 0.0
+            s.roll_rad = 0.0
+            s.yaw_rate_rad_s = 0.0
+            s.t_s += dt_s
+            self._draw_noise()
+            return
+        v_old = list(s.vel_ned_m_s)
+        roll_cmd = max(-p.roll_max_rad, min(p.roll_max_rad, roll_cmd_rad))
+        s.roll_rad += (roll_cmd - s.roll_rad) * _lag_gain(dt_s, p.tau_roll_s)
+        target_as = max(p.airspeed_min_m_s, min(p.airspeed_max_m_s, airspeed_cmd_m_s))
+        d_as = max(-p.a_max_m_s2 * dt_s, min(p.a_max_m_s2 * dt_s, target_as - s.airspeed_m_s))
+        s.airspeed_m_s = max(s.airspeed_m_s + d_as, 0.0)
+        if s.on_ground and s.airspeed_m_s < p.airspeed_min_m_s:
+            # Take-off roll: no turning and no climbing below flying speed.
+            s.roll_rad = 0.0
+            s.yaw_rate_rad_s = 0.0
+            climb_cmd_m_s = 0.0
+        else:
+            s.yaw_rate_rad_s = GRAVITY_M_S2 * math.tan(s.roll_rad) / max(s.airspeed_m_s, p.airspeed_min_m_s)
+        s.yaw_rad = wrap_pi(s.yaw_rad + s.yaw_rate_rad_s * dt_s)
+        vz_cmd = -climb_cmd_m_s
+        vz = v_old[2] + (vz_cmd - v_old[2]) * _lag_gain(dt_s, p.tau_vel_s)
+        self._set_plane_ground_velocity(vz)
+        v_new = s.vel_ned_m_s
+        for i in range(3):
+            s.pos_ned_m[i] += 0.5 * (v_old[i] + v_new[i]) * dt_s
+        if s.pos_ned_m[2] >= 0.0 and s.vel_ned_m_s[2] >= 0.0:
+            s.pos_ned_m[2] = 0.0
+            s.vel_ned_m_s[2] = 0.0
+            s.on_ground = True
+        elif s.pos_ned_m[2] < -0.5:
+            s.on_ground = False
+        s.acc_ned_m_s2 = [(v_new[i] - v_old[i]) / dt_s for i in range(3)]
+        s.pitch_rad = math.atan2(-s.vel_ned_m_s[2], max(s.airspeed_m_s, 1e-6)) if s.airspeed_m_s > 0 else 0.0
+        s.t_s += dt_s
+        self._draw_noise()
+
+    def _set_plane_ground_velocity(self, vz_m_s: float) -> None:
+        s = self.state
+        wn, we = self.params.wind_ned_m_s
+        if s.on_ground:
+            wn = we = 0.0
+        s.vel_ned_m_s = [s.airspeed_m_s * math.cos(s.yaw_rad) + wn, s.airspeed_m_s * math.sin(s.yaw_rad) + we, vz_m_s]
+
+    # ------------------------------------------------------------------ measurements
+    def measured_pos_ned_m(self) -> tuple[float, float, float]:
+        """Position as the autopilot reports it: the true position plus this step's seeded Gaussian noise."""
+        pos = self.state.pos_ned_m
+        n = self._noise_ned_m
+        return (pos[0] + n[0], pos[1] + n[1], pos[2] + n[2])
