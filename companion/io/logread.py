@@ -36,6 +36,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 import re
 import struct
 from dataclasses import dataclass
@@ -337,3 +338,53 @@ def mode_name(autopilot: int, mav_type: int, base_mode: int, custom_mode: int) -
 def mode_name_from_heartbeat(msg) -> str:
     """:func:`mode_name` of a decoded HEARTBEAT message."""
     return mode_name(msg.autopilot, msg.type, msg.base_mode, msg.custom_mode)
+
+
+# -- writing packets (synthetic logs for tests and benchmarks) ------------------------------
+
+class PacketEncoder:
+    """Pack messages from one sender as raw MAVLink 2 packets (for synthetic tlogs).
+
+    Each ``*_packet`` method returns the bytes a tlog record carries after its timestamp;
+    :class:`companion.io.tlog.TlogWriter` adds the timestamp. The sequence number advances by one
+    per packet, as on a real link.
+
+    >>> enc = PacketEncoder(1, 1)
+    >>> pkt = enc.local_position_ned_packet(1000, 1.0, 2.0, -3.0, 0.5, 0.0, 0.0)
+    >>> pkt[0] == MAGIC_V2, pkt[5], pkt[6]
+    (True, 1, 1)
+    """
+
+    def __init__(self, system: int, component: int):
+        self._mav = mavlink.MAVLink(None, srcSystem=system, srcComponent=component)
+
+    def _pack(self, msg) -> bytes:
+        packet = bytes(msg.pack(self._mav))
+        self._mav.seq = (self._mav.seq + 1) % 256
+        return packet
+
+    def heartbeat_packet(self, mav_type: int, autopilot: int, base_mode: int = 0, custom_mode: int = 0) -> bytes:
+        return self._pack(self._mav.heartbeat_encode(mav_type, autopilot, base_mode, custom_mode,
+                                                     mavlink.MAV_STATE_ACTIVE))
+
+    def local_position_ned_packet(self, time_boot_ms: int, x_m: float, y_m: float, z_m: float,
+                                  vx_m_s: float, vy_m_s: float, vz_m_s: float) -> bytes:
+        return self._pack(self._mav.local_position_ned_encode(int(time_boot_ms), x_m, y_m, z_m,
+                                                              vx_m_s, vy_m_s, vz_m_s))
+
+    def attitude_packet(self, time_boot_ms: int, roll_rad: float, pitch_rad: float, yaw_rad: float) -> bytes:
+        return self._pack(self._mav.attitude_encode(int(time_boot_ms), roll_rad, pitch_rad, yaw_rad,
+                                                    0.0, 0.0, 0.0))
+
+    def velocity_setpoint_packet(self, target_system: int, target_component: int, type_mask: int,
+                                 coordinate_frame: int, vx_m_s: float, vy_m_s: float, vz_m_s: float,
+                                 yaw_rate_rad_s: float, time_boot_ms: int = 0) -> bytes:
+        return self._pack(self._mav.set_position_target_local_ned_encode(
+            int(time_boot_ms), target_system, target_component, coordinate_frame, type_mask,
+            0.0, 0.0, 0.0, vx_m_s, vy_m_s, vz_m_s, 0.0, 0.0, 0.0, 0.0, yaw_rate_rad_s))
+
+    def debug_float_array_packet(self, name: str, array_id: int, time_usec: int, data) -> bytes:
+        values = [float(v) for v in data][:58]
+        values += [math.nan] * (58 - len(values))
+        return self._pack(self._mav.debug_float_array_encode(int(time_usec), name.encode()[:10],
+                                                             int(array_id) % 65536, values))

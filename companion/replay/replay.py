@@ -77,6 +77,7 @@ class ReplayResult:
     tracking: dict
     timing_s: dict = field(default_factory=dict)
     mission_path: object = None  # the mission's reference path (for plots)
+    rate_hz: float = math.nan  # the loop rate replayed at
 
     @property
     def steps_compared(self) -> int:
@@ -98,6 +99,7 @@ class ReplayResult:
             "file": str(self.flight.path),
             "kind": self.flight.kind,
             "mission": self.mission_name,
+            "rate_hz": self.rate_hz,
             "steps_compared": self.steps_compared,
             "ticks": int(self.series["t_s"].size),
             "within_tolerance": self.within_tolerance,
@@ -132,17 +134,35 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
                    "pass --mission M.yaml")
 
 
-def tick_config_for(mission: Mission) -> TickConfig:
-    """The per-tick settings a flight of this mission used (those the live runner derives)."""
-    return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=mission.guidance.rate_hz,
-                      altitude_m=mission.altitude_m)
+def tick_config_for(mission: Mission, rate_hz: float) -> TickConfig:
+    """The per-tick settings of a flight of this mission at ``rate_hz``.
+
+    The live runner adds ``--stale-s`` and ``--max-bank-deg`` from its command line; the log does
+    not record them, so replay uses their defaults (0.3 s, 35 deg).
+    """
+    return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m)
 
 
-def default_guidance(mission: Mission):
-    """A fresh two-phase guidance for the mission (the object the live loop steps)."""
-    from companion.guidance.two_phase import TwoPhaseGuidance
+def default_guidance(mission: Mission, rate_hz: float):
+    """A fresh guidance for the mission, built exactly as the live runner builds it."""
+    from companion.loop.runner import make_guidance
 
-    return TwoPhaseGuidance(mission.path, mission.guidance)
+    return make_guidance(mission, rate_hz)
+
+
+def flight_rate_hz(flight: LoggedFlight, mission: Mission) -> float:
+    """The loop rate the flight ran at: from the recorded tick times (median spacing, rounded to
+    a whole number of hertz when within 1 %), else the mission's ``guidance.rate_hz``."""
+    if flight.kind == "companion" and len(flight.ticks) > 2:
+        t = np.array([tk.t_s for tk in flight.ticks])
+        steps = np.diff(t)
+        steps = steps[steps > 0]
+        if steps.size:
+            rate = 1.0 / float(np.median(steps))
+            if abs(rate - round(rate)) <= 0.01 * rate:
+                rate = float(round(rate))
+            return rate
+    return float(mission.guidance.rate_hz)
 
 
 # ------------------------------------------------------------------------------ replay
@@ -165,13 +185,18 @@ def replay_flight(
     mission: Mission,
     tolerance: Tolerance = Tolerance(),
     config: TickConfig | None = None,
-    guidance_factory: Callable[[Mission], object] = default_guidance,
+    guidance_factory: Callable[[Mission, float], object] = default_guidance,
     progress: bool | None = None,
 ) -> ReplayResult:
-    """Replay the ticks of ``flight`` through a fresh guidance built from ``mission``."""
+    """Replay the ticks of ``flight`` through a fresh guidance built from ``mission``.
+
+    ``config`` defaults to :func:`tick_config_for` at :func:`flight_rate_hz`;
+    ``guidance_factory(mission, rate_hz)`` builds the guidance (default: the live runner's).
+    """
     started = time.perf_counter()
-    config = config or tick_config_for(mission)
-    guidance = guidance_factory(mission)
+    rate_hz = config.rate_hz if config is not None else flight_rate_hz(flight, mission)
+    config = config or tick_config_for(mission, rate_hz)
+    guidance = guidance_factory(mission, rate_hz)
     path = mission.path
     companion_log = flight.kind == "companion"
     n = len(flight.ticks)
@@ -257,7 +282,8 @@ def replay_flight(
     cols["phase_logged"] = np.asarray(phase_logged, dtype=object)
     cols["phase_replayed"] = np.asarray(phase_replayed, dtype=object)
     return ReplayResult(flight, mission.name, tolerance, cols, first_divergence, per_phase, switches,
-                        tracking, {"replay_s": time.perf_counter() - started}, mission.path)
+                        tracking, {"replay_s": time.perf_counter() - started}, mission.path,
+                        rate_hz)
 
 
 def _divergence(tk: LoggedTick, i: int, cols: dict, phase_logged: str, phase_replayed: str,
@@ -337,7 +363,8 @@ def replay_log(
     tolerance: Tolerance = Tolerance(),
     on_warning: Callable[[LogWarning], None] | None = None,
     progress: bool | None = None,
-    guidance_factory: Callable[[Mission], object] = default_guidance,
+    guidance_factory: Callable[[Mission, float], object] = default_guidance,
+    config: TickConfig | None = None,
 ) -> ReplayResult:
     """Read ``tlog``, load its mission, replay it. Raises :class:`LogError` / ``MissionError``."""
     started = time.perf_counter()
@@ -345,7 +372,8 @@ def replay_log(
     read_s = time.perf_counter() - started
     if not isinstance(mission, Mission):
         mission = load_mission(find_mission(tlog, mission))
-    result = replay_flight(flight, mission, tolerance, guidance_factory=guidance_factory, progress=progress)
+    result = replay_flight(flight, mission, tolerance, config=config, guidance_factory=guidance_factory,
+                           progress=progress)
     result.timing_s["read_s"] = read_s
     result.timing_s["total_s"] = time.perf_counter() - started
     return result

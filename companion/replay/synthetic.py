@@ -1,0 +1,191 @@
+"""Synthetic companion flights: a tlog exactly like the flight loop records, without a vehicle.
+
+:func:`write_synthetic_flight` plays the flight loop against a simple kinematic vehicle and
+records what the loop records: the autopilot's ``LOCAL_POSITION_NED`` (and ``ATTITUDE``,
+``HEARTBEAT``), and per tick the companion's ``SET_POSITION_TARGET_LOCAL_NED`` followed by the
+``DEBUG_FLOAT_ARRAY "guidance"`` row, with the mission written beside the log as
+``<tlog>.mission.yaml``. Each tick goes through :func:`companion.loop.tick.compute_tick` with the
+guidance built by :func:`companion.loop.runner.make_guidance`, as in flight. The samples handed to
+the guidance are rounded to float32 first, as they would be after crossing the wire.
+
+The vehicle: its horizontal velocity becomes the commanded velocity at the next tick (optionally
+through a first-order lag ``vehicle_lag_s``), altitude is held, one ``LOCAL_POSITION_NED`` per
+tick. (The velocity setpoint points along the course one tick ahead, so a lagging vehicle turns
+at only about ``dt / lag`` of the commanded rate; the default is no lag.) The tick time carries a
+small deterministic jitter (as a wall clock would), so ``t_s`` is not on the tick grid.
+
+:func:`replay_throughput` times the replay of such a flight (default: one hour at 50 Hz on a
+closed racetrack) and is what ``companion bench perf`` reports.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import tempfile
+import time
+from pathlib import Path
+
+from companion.geometry import frames
+from companion.io.logread import PacketEncoder
+from companion.io.state import PositionSample
+from companion.io.tlog import TlogWriter
+from companion.loop.tick import TickConfig, compute_tick
+from companion.mission import Mission, parse_mission
+
+SAMPLE_AGE_S = 0.004  # how long before the tick the newest sample arrived
+TICK_JITTER_S = 0.0007  # amplitude of the tick-time jitter
+START_UNIX_S = 1_795_000_000.0
+BOOT_MS_AT_START = 120_000
+MAV_TYPE_QUADROTOR = 2
+MAV_TYPE_ONBOARD_CONTROLLER = 18
+MAV_AUTOPILOT_ARDUPILOTMEGA = 3
+MAV_AUTOPILOT_INVALID = 8
+GUIDED_ARMED_BASE_MODE = 1 | 128  # custom mode enabled, armed
+COPTER_GUIDED = 4
+
+#: A closed racetrack (two 120 m straights, two 40 m radius half-circles) flown at 5 m/s with
+#: the corrector-aided law: the default flight of :func:`replay_throughput`.
+RACETRACK_MISSION = """\
+name: synthetic-racetrack
+frame: local_enu
+speed_m_s: 5.0
+altitude_m: 10.0
+path:
+  type: segments
+  start_m: [0.0, 0.0]
+  start_heading_deg: 0.0
+  blend_m: 5.0
+  closed: true
+  segments:
+    - {type: line, length_m: 120.0}
+    - {type: arc, radius_m: 40.0, turn_deg: 180.0}
+    - {type: line, length_m: 120.0}
+    - {type: arc, radius_m: 40.0, turn_deg: 180.0}
+guidance: {l1_m: 10.0, method: corrector, rate_hz: 50}
+"""
+
+_F32x6 = struct.Struct("<6f")
+
+
+def _float32(*values: float) -> tuple[float, ...]:
+    return _F32x6.unpack(_F32x6.pack(*values)) if len(values) == 6 else tuple(
+        struct.unpack("<f", struct.pack("<f", v))[0] for v in values)
+
+
+def write_synthetic_flight(
+    tlog_path: str | Path,
+    mission: Mission | str = RACETRACK_MISSION,
+    duration_s: float = 60.0,
+    rate_hz: float = 50.0,
+    start_offset_m: tuple[float, float] = (0.0, 3.0),
+    vehicle_lag_s: float = 0.0,
+) -> dict:
+    """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
+
+    Parameters
+    ----------
+    tlog_path : where to write the log (``<tlog>.mission.yaml`` is written beside it).
+    mission : a :class:`Mission` or mission YAML text.
+    duration_s, rate_hz : length of the flight and the loop rate.
+    start_offset_m : the vehicle's start, ENU, relative to the path's first point.
+    vehicle_lag_s : time constant of the vehicle's velocity response (0: immediate).
+
+    Returns
+    -------
+    dict with ``ticks``, ``records`` and ``generate_s``.
+    """
+    from companion.loop.runner import make_guidance
+
+    started = time.perf_counter()
+    if isinstance(mission, str):
+        mission = parse_mission(mission, "<synthetic>")
+    tlog_path = Path(tlog_path)
+    Path(str(tlog_path) + ".mission.yaml").write_text(mission.source_text, encoding="utf-8")
+    guidance = make_guidance(mission, rate_hz)
+    config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m)
+    dt = 1.0 / rate_hz
+    autopilot = PacketEncoder(1, 1)
+    companion = PacketEncoder(1, 191)
+
+    x0, y0 = mission.path.start_xy_m
+    heading = mission.path.start_heading_rad
+    x, y = x0 + start_offset_m[0], y0 + start_offset_m[1]
+    ve, vn = mission.speed_m_s * math.cos(heading), mission.speed_m_s * math.sin(heading)
+    alt = mission.altitude_m
+    prev_course = heading
+    n_ticks = int(round(duration_s * rate_hz))
+    alpha = 1.0 - math.exp(-dt / vehicle_lag_s) if vehicle_lag_s > 0 else 1.0
+
+    with TlogWriter(tlog_path, min_free_bytes=0) as tlog:
+        for k in range(n_ticks):
+            t_grid = k * dt
+            unix = START_UNIX_S + t_grid
+            boot_ms = BOOT_MS_AT_START + int(round(t_grid * 1000.0))
+            if k % int(round(rate_hz)) == 0:
+                tlog.write(autopilot.heartbeat_packet(MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                                      GUIDED_ARMED_BASE_MODE, COPTER_GUIDED), unix - 0.002)
+                tlog.write(companion.heartbeat_packet(MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID),
+                           unix - 0.001)
+            # the autopilot's sample, as it crosses the wire (float32)
+            fields = _float32(y, x, -alt, vn, ve, 0.0)
+            tlog.write(autopilot.local_position_ned_packet(boot_ms, *fields), unix - SAMPLE_AGE_S)
+            if k % 5 == 0:
+                yaw_ned = frames.yaw_ned_from_enu(math.atan2(vn, ve))
+                tlog.write(autopilot.attitude_packet(boot_ms, 0.0, 0.0, yaw_ned), unix - SAMPLE_AGE_S / 2)
+                yaw_seen = _float32(yaw_ned)[0]
+            sample = PositionSample(boot_ms, *fields)
+            t_s = t_grid + TICK_JITTER_S * math.sin(0.7 * k)
+            res = compute_tick(guidance, k, t_s, sample, SAMPLE_AGE_S, config,
+                               yaw_ned_rad=yaw_seen, prev_course_rad=prev_course)
+            prev_course = res.course_rad
+            sp = res.setpoint
+            tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
+                                                          sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
+                                                          sp.yaw_rate_ned_rad_s), unix)
+            tlog.write(companion.debug_float_array_packet("guidance", k, boot_ms * 1000, res.debug), unix)
+            # the vehicle follows the commanded horizontal velocity with a first-order lag
+            cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
+            ve += alpha * (cmd_ve - ve)
+            vn += alpha * (cmd_vn - vn)
+            x += ve * dt
+            y += vn * dt
+        records = tlog.records
+    return {"ticks": n_ticks, "records": records, "generate_s": time.perf_counter() - started}
+
+
+def replay_throughput(
+    duration_s: float = 3600.0,
+    rate_hz: float = 50.0,
+    mission: str = RACETRACK_MISSION,
+    workdir: str | Path | None = None,
+) -> dict:
+    """Generate a synthetic flight, replay it, and time the replay.
+
+    Returns
+    -------
+    dict with ``duration_s`` (flight length), ``rate_hz``, ``ticks``, ``file_bytes``,
+    ``generate_s`` (not part of the replay), ``read_s``, ``replay_s``, ``total_s`` (read +
+    replay), ``ticks_per_s``, ``within_tolerance``, ``steps_compared``.
+    """
+    from companion.replay.replay import replay_log
+
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        tlog = Path(tmp) / "synthetic.tlog"
+        info = write_synthetic_flight(tlog, mission, duration_s, rate_hz)
+        size = tlog.stat().st_size
+        result = replay_log(tlog, progress=False)
+    total = result.timing_s["total_s"]
+    return {
+        "duration_s": float(duration_s),
+        "rate_hz": float(rate_hz),
+        "ticks": info["ticks"],
+        "file_bytes": size,
+        "generate_s": info["generate_s"],
+        "read_s": result.timing_s["read_s"],
+        "replay_s": result.timing_s["replay_s"],
+        "total_s": total,
+        "ticks_per_s": info["ticks"] / total if total > 0 else math.inf,
+        "within_tolerance": result.within_tolerance,
+        "steps_compared": result.steps_compared,
+    }
