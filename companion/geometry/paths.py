@@ -404,6 +404,25 @@ class Path:
         norm = np.hypot(ax, ay)
         return ax / norm, ay / norm
 
+    def frame_array(self, s_m) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Vectorised :meth:`frame`: arrays ``(x_m, y_m, tx, ty, curvature_1_m)``."""
+        i, u = self._locate_array(s_m)
+        h = self._h
+        u2 = u * u
+        u3 = u2 * u
+        h00 = 2 * u3 - 3 * u2 + 1
+        h10 = (u3 - 2 * u2 + u) * h
+        h01 = -2 * u3 + 3 * u2
+        h11 = (u3 - u2) * h
+        X, Y, TX, TY, K = self.x_table_m, self.y_table_m, self.tx_table, self.ty_table, self.k_table_1_m
+        tx0, tx1, ty0, ty1, k0, k1 = TX[i], TX[i + 1], TY[i], TY[i + 1], K[i], K[i + 1]
+        px = h00 * X[i] + h10 * tx0 + h01 * X[i + 1] + h11 * tx1
+        py = h00 * Y[i] + h10 * ty0 + h01 * Y[i + 1] + h11 * ty1
+        ax = h00 * tx0 - h10 * k0 * ty0 + h01 * tx1 - h11 * k1 * ty1
+        ay = h00 * ty0 + h10 * k0 * tx0 + h01 * ty1 + h11 * k1 * tx1
+        norm = np.hypot(ax, ay)
+        return px, py, ax / norm, ay / norm, k0 + u * (k1 - k0)
+
     def curvature_array(self, s_m) -> np.ndarray:
         """Vectorised :meth:`curvature`."""
         i, u = self._locate_array(s_m)

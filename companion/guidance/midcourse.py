@@ -1,0 +1,252 @@
+"""Mid-course phase: from far away to the path start along an initiation circle (paper section III-A).
+
+Geometry (local ENU, angles anticlockwise):
+
+- The path starts at S with heading ``theta0``. Two *initiation circles* of radius R touch the
+  path there: the *left* one, centre ``S + R n0`` (``n0`` the left normal), flown anticlockwise
+  (sense ``+1``), and the *right* one, centre ``S - R n0``, flown clockwise (sense ``-1``). Flying
+  either in its sense brings the vehicle through S with heading ``theta0``.
+- From the vehicle P with course direction ``v``, the circles through P tangent to ``v`` form a
+  one-parameter family (signed curvature ``c``; the command that flies one is ``a = V^2 c``).
+  Exactly two of them touch a given initiation circle C (centre O): the largest and smallest
+  ``c``, which are the two extrema of Park's command over look-ahead points on C (lemma 1). Their
+  contact points are lemma 1's W (the larger circle, smaller ``|a|``) and the *alternate* one.
+- At a contact point the vehicle's velocity is tangent to C, but only one of the two touches
+  arrives in C's sense. With ``D = P - O`` and ``a_n = D . n_v`` (``n_v`` the left normal of the
+  velocity), the arriving-in-sense circle has, in closed form,
+
+      c = -2 sigma (R + sigma a_n) / (|D|^2 - R^2)
+
+  (external tangency when ``c`` has the sign opposite to ``sigma``, internal otherwise), and
+  its contact point is ``W = O + R u`` with ``u`` the unit vector from O towards the touching
+  circle's centre (external) or away from it (internal); on a straight approach (``c = 0``)
+  ``W = O - sigma R n_v``.
+
+Selection (the paper's Case 1 / Case 2 with their sectors): Case 1 when P is behind the start
+(``(P - S) . t0 < 0``), Case 2 when it is in front. For each initiation circle, the arriving-in-
+sense touch is either lemma 1's W ("primary": red / blue sectors) or the alternate circle
+(green sector of Case 2). The paper's rule, applied to both cases: if exactly one initiation
+circle is reached in sense through its primary W, fly that one; otherwise (green sectors) fly
+the circle whose touch needs the smaller ``|a|``.
+
+Flight: the constant command ``a = V^2 c`` (equal to Park's ``2 V^2 sin(eta) / |PW|`` with W as
+a static look-ahead point) is held until the vehicle has flown the arc to W; then the initiation
+circle is followed with constant-L1 guidance on the circle (look-ahead ``min(L1, sqrt(2) R)``,
+which is the closed loop whose steady command is ``V^2 / R``) until the vehicle passes S, where
+the close-range phase takes over.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from companion.guidance.l1 import l1_command, wrap_pi
+
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class InitiationCircle:
+    """A circle of radius ``radius_m`` touching the path at its start, flown in ``sense``."""
+
+    name: str  # "left" (anticlockwise) or "right" (clockwise)
+    centre_xy_m: tuple[float, float]
+    radius_m: float
+    sense: int  # +1 anticlockwise, -1 clockwise
+
+    def angle_rad(self, x_m: float, y_m: float) -> float:
+        """Polar angle of ``(x_m, y_m)`` about the centre."""
+        return math.atan2(y_m - self.centre_xy_m[1], x_m - self.centre_xy_m[0])
+
+
+@dataclass(frozen=True)
+class Approach:
+    """The constant-command arc from the vehicle to a contact point on an initiation circle."""
+
+    circle: InitiationCircle
+    contact_xy_m: tuple[float, float]  # W
+    a_cmd_m_s2: float  # V^2 c, held constant until W
+    curvature_1_m: float  # c, signed (0: straight approach)
+    turn_rad: float  # course change from P to W, >= 0, in the direction of the turn
+    arc_m: float  # distance flown from P to W
+    circle_arc_rad: float  # angle flown on the initiation circle from W to S, in [0, 2 pi)
+    primary: bool  # True: lemma 1's W (larger circle); False: the alternate circle
+    tangency: str  # "external" or "internal"
+
+
+@dataclass(frozen=True)
+class MidcoursePlan:
+    """The chosen approach, the alternative, and the paper's case."""
+
+    chosen: Approach
+    other: Approach
+    case: int  # 1: vehicle behind the path start, 2: in front
+    rule: str  # "only_primary" (red/blue sectors) or "lower_acceleration" (green sectors)
+
+
+def initiation_circles(start_xy_m: tuple[float, float], start_heading_rad: float,
+                       radius_m: float) -> tuple[InitiationCircle, InitiationCircle]:
+    """The left (anticlockwise) and right (clockwise) circles touching the path at its start."""
+    sx, sy = start_xy_m
+    nx, ny = -math.sin(start_heading_rad), math.cos(start_heading_rad)
+    left = InitiationCircle("left", (sx + radius_m * nx, sy + radius_m * ny), radius_m, +1)
+    right = InitiationCircle("right", (sx - radius_m * nx, sy - radius_m * ny), radius_m, -1)
+    return left, right
+
+
+def _touching_curvatures(dsq: float, a_n: float, r: float) -> tuple[float, float]:
+    """Signed curvatures of the two circles through P tangent to v that touch C.
+
+    ``c_plus`` arrives in C's anticlockwise sense, ``c_minus`` in its clockwise sense.
+    """
+    den = dsq - r * r
+    c_plus = -2.0 * (r + a_n) / den
+    c_minus = 2.0 * (r - a_n) / den
+    return c_plus, c_minus
+
+
+def contact_approach(x_m: float, y_m: float, course_rad: float, speed_m_s: float,
+                     circle: InitiationCircle, start_xy_m: tuple[float, float]) -> Approach:
+    """The circle through the vehicle, tangent to its velocity, that touches ``circle`` in its sense.
+
+    Requires the vehicle outside the circle (``|P - O| > R``).
+    """
+    ox, oy = circle.centre_xy_m
+    r = circle.radius_m
+    sigma = circle.sense
+    vx, vy = math.cos(course_rad), math.sin(course_rad)
+    nvx, nvy = -vy, vx
+    dx, dy = x_m - ox, y_m - oy
+    dsq = dx * dx + dy * dy
+    if dsq <= r * r * (1.0 + 1e-9):
+        raise ValueError("mid-course: the vehicle is on or inside the initiation circle")
+    a_n = dx * nvx + dy * nvy
+    c_plus, c_minus = _touching_curvatures(dsq, a_n, r)
+    c, c_other = (c_plus, c_minus) if sigma > 0 else (c_minus, c_plus)
+    primary = abs(c) <= abs(c_other)
+    if abs(c) < 1e-12:
+        c = 0.0
+        wx, wy = ox - sigma * r * nvx, oy - sigma * r * nvy
+        tangency = "external"
+        turn = 0.0
+        arc = (wx - x_m) * vx + (wy - y_m) * vy
+    else:
+        rho = 1.0 / c  # signed radius; centre Q = P + rho n_v
+        qx, qy = x_m + rho * nvx, y_m + rho * nvy
+        ux, uy = qx - ox, qy - oy
+        norm = math.hypot(ux, uy)
+        ux, uy = ux / norm, uy / norm
+        external = (c > 0) != (sigma > 0)
+        tangency = "external" if external else "internal"
+        if not external:
+            ux, uy = -ux, -uy
+        wx, wy = ox + r * ux, oy + r * uy
+        # Course change from P to W along the touching circle, in the turn direction.
+        ang_p = math.atan2(y_m - qy, x_m - qx)
+        ang_w = math.atan2(wy - qy, wx - qx)
+        turn = ((ang_w - ang_p) * (1.0 if c > 0 else -1.0)) % TWO_PI
+        arc = abs(rho) * turn
+    sx, sy = start_xy_m
+    circle_arc = (sigma * (math.atan2(sy - oy, sx - ox) - math.atan2(wy - oy, wx - ox))) % TWO_PI
+    return Approach(circle, (wx, wy), speed_m_s * speed_m_s * c, c, turn, arc, circle_arc,
+                    primary, tangency)
+
+
+def plan_midcourse(x_m: float, y_m: float, course_rad: float, speed_m_s: float,
+                   start_xy_m: tuple[float, float], start_heading_rad: float,
+                   radius_m: float) -> MidcoursePlan:
+    """Choose the initiation circle and contact point (Case 1 / Case 2 rules, module docstring)."""
+    left, right = initiation_circles(start_xy_m, start_heading_rad, radius_m)
+    a_left = contact_approach(x_m, y_m, course_rad, speed_m_s, left, start_xy_m)
+    a_right = contact_approach(x_m, y_m, course_rad, speed_m_s, right, start_xy_m)
+    tx, ty = math.cos(start_heading_rad), math.sin(start_heading_rad)
+    case = 1 if (x_m - start_xy_m[0]) * tx + (y_m - start_xy_m[1]) * ty < 0.0 else 2
+    if a_left.primary != a_right.primary:
+        chosen, other = (a_left, a_right) if a_left.primary else (a_right, a_left)
+        rule = "only_primary"
+    else:
+        lower_left = (abs(a_left.a_cmd_m_s2), a_left.arc_m) <= (abs(a_right.a_cmd_m_s2), a_right.arc_m)
+        chosen, other = (a_left, a_right) if lower_left else (a_right, a_left)
+        rule = "lower_acceleration"
+    return MidcoursePlan(chosen, other, case, rule)
+
+
+def circle_lookahead(x_m: float, y_m: float, circle: InitiationCircle,
+                     l1_m: float) -> tuple[float, float]:
+    """The point of ``circle`` at distance ``l1_m`` from the vehicle, ahead in the circle's sense.
+
+    When the circle of radius ``l1_m`` around the vehicle does not cut the initiation circle
+    (the vehicle is more than ``l1_m`` off it), the point of the circle ``l1_m`` of arc ahead of
+    the vehicle's radial projection is used instead.
+    """
+    ox, oy = circle.centre_xy_m
+    r = circle.radius_m
+    dx, dy = x_m - ox, y_m - oy
+    d = math.hypot(dx, dy)
+    theta = math.atan2(dy, dx)
+    if d > 1e-9 and abs(d - r) < l1_m < d + r:
+        # Law of cosines: angle at O between OP and the intersection point.
+        cos_b = (d * d + r * r - l1_m * l1_m) / (2.0 * d * r)
+        beta = math.acos(max(-1.0, min(1.0, cos_b)))
+        phi = theta + circle.sense * beta
+    else:
+        phi = theta + circle.sense * (l1_m / r)
+    return ox + r * math.cos(phi), oy + r * math.sin(phi)
+
+
+class MidcourseGuidance:
+    """Flies one :class:`MidcoursePlan`: the constant-command arc, then the initiation circle.
+
+    ``step`` returns ``(a_cmd_m_s2, stage, done)``; ``stage`` is ``"approach"`` or ``"circle"``
+    and ``done`` turns True on the tick the vehicle passes the path start on the circle.
+    """
+
+    def __init__(self, plan: MidcoursePlan, start_xy_m: tuple[float, float], l1_m: float):
+        self.plan = plan
+        self.circle = plan.chosen.circle
+        self.start_xy_m = start_xy_m
+        self.l1_circle_m = min(l1_m, math.sqrt(2.0) * self.circle.radius_m)
+        self.stage = "approach"
+        self._flown_m = 0.0
+        self._t_prev: float | None = None
+        self._remaining_prev: float | None = None
+        self.lookahead_xy_m: tuple[float, float] | None = plan.chosen.contact_xy_m
+
+    def _remaining_rad(self, x_m: float, y_m: float) -> float:
+        """Angle still to fly on the circle before the path start, in ``[0, 2 pi)``."""
+        c = self.circle
+        sx, sy = self.start_xy_m
+        return (c.sense * (c.angle_rad(sx, sy) - c.angle_rad(x_m, y_m))) % TWO_PI
+
+    def step(self, t_s: float, x_m: float, y_m: float, course_rad: float,
+             speed_m_s: float) -> tuple[float, str, bool]:
+        if self._t_prev is not None:
+            self._flown_m += max(t_s - self._t_prev, 0.0) * speed_m_s
+        dt_guess = 0.0 if self._t_prev is None else max(t_s - self._t_prev, 0.0)
+        self._t_prev = t_s
+        if self.stage == "approach":
+            # Half a tick early is the closest tick to W.
+            if self._flown_m + 0.5 * speed_m_s * dt_guess >= self.plan.chosen.arc_m:
+                self.stage = "circle"
+            else:
+                self.lookahead_xy_m = self.plan.chosen.contact_xy_m
+                return self.plan.chosen.a_cmd_m_s2, "approach", False
+        remaining = self._remaining_rad(x_m, y_m)
+        prev = self._remaining_prev
+        self._remaining_prev = remaining
+        # Passing S makes the remaining angle wrap from near 0 to near 2 pi.
+        if prev is not None and prev < 0.5 * math.pi and remaining > 1.5 * math.pi:
+            return 0.0, "circle", True
+        lx, ly = circle_lookahead(x_m, y_m, self.circle, self.l1_circle_m)
+        self.lookahead_xy_m = (lx, ly)
+        a, _, _ = l1_command(x_m, y_m, course_rad, speed_m_s, lx, ly)
+        return a, "circle", False
+
+
+def circle_sense_course_error_rad(circle: InitiationCircle, x_m: float, y_m: float,
+                                  course_rad: float) -> float:
+    """Course minus the circle's tangent direction (in its sense) at the vehicle's angle."""
+    theta = circle.angle_rad(x_m, y_m)
+    tangent = theta + circle.sense * 0.5 * math.pi
+    return wrap_pi(course_rad - tangent)

@@ -1,0 +1,174 @@
+"""Online selection of the corrector gains k1, k2 (paper section III-B.3).
+
+Every ``dt_online = min(d_limit, R_proj) / V`` seconds (``d_limit = d_limit_factor * L1``,
+``R_proj`` the radius of curvature at the vehicle's projection), the paper's kinematics (eq. 1)
+are rolled forward over ``dt_online`` for every candidate pair (k1, k2) and the pair with the
+smallest RMS cross-track error over that window is kept until the next re-optimisation.
+
+Only the ratio matters. The command is a weighted mean, so (k1, k2) and (c k1, c k2) give the
+same command: the search is over ``rho = k2 / k1`` in ``[0, inf]``. Its useful range is wide,
+because ``w2 / w1 = rho v_m k^2 (1 + l23) / (1 + l43)`` and the squared curvature ``k^2`` of a
+path like the paper's sine runs from about 1e-6 to 2e-2 1/m^2: the candidates are spaced
+logarithmically over ``RHO_LOG10_RANGE`` and include both pure ends, ``k2 = 0`` (constant L1)
+and ``k1 = 0`` (the corrector alone), plus the previous optimum (warm start). A second, finer
+batch around the best candidate refines it. A ratio maps back to bounded gains: ``k1 = k1_max,
+k2 = rho k1_max`` while that stays within ``k2_max``, else ``k2 = k2_max, k1 = k2_max / rho``.
+
+The rollouts of all candidates run at once (numpy arrays over candidates) with a rollout step
+of at least the guidance tick and at most ``window / ROLLOUT_MAX_STEPS``; projection and
+look-ahead points are tracked by Newton steps from the previous ones, which is exact enough over
+the short window and much cheaper than a fresh search.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from companion.geometry.paths import Path
+from companion.guidance.corrector import corrector_command_array
+from companion.guidance.types import GuidanceParams
+
+RHO_LOG10_RANGE = (-1.0, 7.0)
+RHO_COARSE_COUNT = 17  # log-spaced ratios in the first batch (half a decade apart)
+RHO_FINE_COUNT = 6  # second batch: +- half a decade around the best ratio
+ROLLOUT_MAX_STEPS = 60
+
+
+def gains_from_ratio(rho: float, k1_max: float, k2_max: float) -> tuple[float, float]:
+    """Bounded gains (k1, k2) with ``k2 / k1 = rho`` (``rho = inf`` gives ``(0, k2_max)``)."""
+    if rho <= 0.0:
+        return k1_max, 0.0
+    if math.isinf(rho):
+        return 0.0, k2_max
+    if k1_max * rho <= k2_max:
+        return k1_max, k1_max * rho
+    return k2_max / rho, k2_max
+
+
+def ratio_from_gains(k1: float, k2: float) -> float:
+    if k2 <= 0.0:
+        return 0.0
+    if k1 <= 0.0:
+        return math.inf
+    return k2 / k1
+
+
+class GainOptimiser:
+    """Chooses (k1, k2) by rolling the kinematics forward for many candidates at once.
+
+    Parameters
+    ----------
+    path : the reference path.
+    params : guidance parameters (``l1_m``, ``rate_hz``, ``k1_max``, ``k2_max``,
+        ``d_limit_factor`` are used).
+    """
+
+    def __init__(self, path: Path, params: GuidanceParams):
+        self.path = path
+        self.params = params
+        lo, hi = RHO_LOG10_RANGE
+        self._coarse_log10 = np.linspace(lo, hi, RHO_COARSE_COUNT)
+        self._step_log10 = (hi - lo) / (RHO_COARSE_COUNT - 1)
+
+    def window_s(self, s_proj_m: float, speed_m_s: float) -> float:
+        """``min(d_limit, R_proj) / V``: the rollout horizon and the time until the next re-optimisation."""
+        k = abs(self.path.curvature(s_proj_m))
+        r_proj = math.inf if k < 1e-12 else 1.0 / k
+        d_online = min(self.params.d_limit_factor * self.params.l1_m, r_proj)
+        return d_online / max(speed_m_s, 1e-3)
+
+    def optimise(self, x_m: float, y_m: float, course_rad: float, speed_m_s: float,
+                 s_proj_m: float, s_look_m: float, warm_ratio: float | None = None
+                 ) -> tuple[float, float, float]:
+        """Best gains for the coming window.
+
+        Returns
+        -------
+        (k1, k2, window_s)
+        """
+        p = self.params
+        window = self.window_s(s_proj_m, speed_m_s)
+        # Batch 1: pure ends, the log grid and the warm start.
+        finite = list(10.0 ** self._coarse_log10)
+        if warm_ratio is not None and 0.0 < warm_ratio < math.inf:
+            finite.append(warm_ratio)
+        rhos = np.array([0.0] + finite + [math.inf])
+        cost = self._rollout_cost(rhos, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window)
+        best = int(np.argmin(cost))
+        best_rho, best_cost = float(rhos[best]), float(cost[best])
+        # Batch 2: refine around the best finite ratio (or next to the pure end that won).
+        if best_rho == 0.0:
+            centre = RHO_LOG10_RANGE[0]
+        elif math.isinf(best_rho):
+            centre = RHO_LOG10_RANGE[1]
+        else:
+            centre = math.log10(best_rho)
+        offsets = np.linspace(-self._step_log10, self._step_log10, RHO_FINE_COUNT + 2)[1:-1]
+        fine = 10.0 ** (centre + offsets)
+        cost2 = self._rollout_cost(fine, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window)
+        j = int(np.argmin(cost2))
+        if cost2[j] < best_cost:
+            best_rho = float(fine[j])
+        k1, k2 = gains_from_ratio(best_rho, p.k1_max, p.k2_max)
+        return k1, k2, window
+
+    def _rollout_cost(self, rhos: np.ndarray, x_m: float, y_m: float, course_rad: float,
+                      speed_m_s: float, s_proj_m: float, s_look_m: float, window_s: float) -> np.ndarray:
+        """Mean squared cross-track error over the window for each candidate ratio."""
+        p = self.params
+        path = self.path
+        gains = np.array([gains_from_ratio(float(r), p.k1_max, p.k2_max) for r in rhos])
+        k1, k2 = gains[:, 0], gains[:, 1]
+        m = rhos.size
+        V = speed_m_s
+        l1 = p.l1_m
+        l1sq = l1 * l1
+        n_steps = max(1, min(ROLLOUT_MAX_STEPS, int(math.ceil(window_s * p.rate_hz))))
+        dt = window_s / n_steps
+        x = np.full(m, x_m)
+        y = np.full(m, y_m)
+        psi = np.full(m, course_rad)
+        s_p = np.full(m, s_proj_m)
+        s_l = np.full(m, max(s_look_m, s_proj_m))
+        s_max = math.inf if path.closed else path.length_m
+        sq_sum = np.zeros(m)
+        for _ in range(n_steps):
+            # Projection: two Newton steps on (p(s) - q) . t(s) = 0 from the previous one.
+            for _ in range(2):
+                px, py, tx, ty, k = path.frame_array(s_p)
+                dx, dy = px - x, py - y
+                g = dx * tx + dy * ty
+                dg = np.maximum(1.0 + k * (dy * tx - dx * ty), 0.2)
+                s_p = np.clip(s_p - g / dg, 0.0, s_max)
+            px, py, tx, ty, _ = path.frame_array(s_p)
+            # Look-ahead: Newton on |p(s) - q|^2 = L1^2 forward of the projection.
+            s_l = np.maximum(s_l, s_p)
+            for _ in range(3):
+                lx, ly, ltx, lty, lk = path.frame_array(s_l)
+                ex, ey = lx - x, ly - y
+                f = ex * ex + ey * ey - l1sq
+                df = np.maximum(2.0 * (ex * ltx + ey * lty), 0.5 * l1)
+                s_l = np.clip(s_l - np.clip(f / df, -2.0, 2.0), s_p, s_max)
+            lx, ly, ltx, lty, lk = path.frame_array(s_l)
+            a = corrector_command_array(x, y, psi, V, l1, px, py, tx, ty, lx, ly, ltx, lty, lk, k1, k2)
+            # Exact unicycle step for a constant turn rate (eq. 1).
+            w = a / V
+            dpsi = w * dt
+            psi_new = psi + dpsi
+            small = np.abs(dpsi) < 1e-9
+            w_safe = np.where(small, 1.0, w)
+            x = x + np.where(small, V * dt * np.cos(psi), V / w_safe * (np.sin(psi_new) - np.sin(psi)))
+            y = y + np.where(small, V * dt * np.sin(psi), -V / w_safe * (np.cos(psi_new) - np.cos(psi)))
+            psi = psi_new
+            # Cross-track error after the step (distance to the tracked projection).
+            for _ in range(1):
+                px, py, tx, ty, k = path.frame_array(s_p)
+                dx, dy = px - x, py - y
+                g = dx * tx + dy * ty
+                dg = np.maximum(1.0 + k * (dy * tx - dx * ty), 0.2)
+                s_p = np.clip(s_p - g / dg, 0.0, s_max)
+            px, py = path.point_array(s_p)
+            sq_sum += (px - x) ** 2 + (py - y) ** 2
+        return sq_sum / n_steps

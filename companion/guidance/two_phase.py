@@ -1,0 +1,172 @@
+"""The two-phase guidance of the paper (Algorithm 1): mid-course, then close-range following.
+
+    guidance = TwoPhaseGuidance(path, GuidanceParams(method="corrector"))
+    out = guidance.step(t_s, VehicleState(x_m, y_m, course_rad, speed_m_s))
+    out.a_cmd_m_s2, out.phase, out.k1, out.k2, out.lookahead_xy_m, out.corrector_xy_m
+
+One object per flight: it keeps the previous projection (so the projection follows the path
+continuously), the current gains and the mid-course plan. Deterministic: the same sequence of
+``step`` calls gives the same outputs.
+
+Phases
+------
+``midcourse``
+    Entered on the first tick when the trigger fires (``params.midcourse_trigger``):
+
+    - ``"auto"`` (default): the vehicle is at least ``2 R`` from the path start, R the
+      initiation circle radius (``params.circle_radius_m``). This is the paper's distance test
+      with the circle actually flown in place of R0; it fires on straight starts too.
+    - ``"paper"``: at least ``2 R0`` away, R0 the radius of curvature of the path at its start
+      (on a nearly straight start R0 is huge and this never fires).
+    - ``"off"``: never.
+
+    See :mod:`companion.guidance.midcourse` for the circles, the contact point and the switch.
+``close_range``
+    Constant L1 (``method="fixed_l1"``) or the corrector-aided command with online gains
+    (``method="corrector"``). When the vehicle is more than L1 from every path point ahead (no
+    look-ahead point) it steers at its projection with Park's command (distance = cross-track).
+``finished``
+    On an open path, when the look-ahead point would run past the path end (the end is within
+    L1 of the vehicle and no point ahead leaves the L1 circle): the paper's "while the
+    look-ahead point is not the end of path". The command is then 0. A closed path never
+    finishes.
+"""
+
+from __future__ import annotations
+
+import math
+
+from companion.geometry.paths import Path
+from companion.guidance.corrector import corrector_command
+from companion.guidance.l1 import l1_command
+from companion.guidance.midcourse import MidcourseGuidance, plan_midcourse
+from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
+from companion.guidance.types import GuidanceOutput, GuidanceParams, VehicleState
+
+
+class TwoPhaseGuidance:
+    """Algorithm 1 of the paper as one object fed once per tick.
+
+    Parameters
+    ----------
+    path : the reference path (local ENU).
+    params : tuning; ``params.method`` selects constant L1 or the corrector-aided law.
+    """
+
+    def __init__(self, path: Path, params: GuidanceParams):
+        self.path = path
+        self.params = params
+        self._optimiser = GainOptimiser(path, params) if params.method == "corrector" else None
+        self._started = False
+        self._midcourse: MidcourseGuidance | None = None
+        self._finished = False
+        self._s_proj: float | None = None
+        self._s_look: float | None = None
+        self._k1 = 1.0 if params.method == "fixed_l1" else params.k1_max
+        self._k2 = 0.0
+        self._t_next_opt = -math.inf
+
+    # ------------------------------------------------------------------ public
+    @property
+    def midcourse_plan(self):
+        """The mid-course plan (None when the mid-course phase was not triggered)."""
+        return None if self._midcourse is None else self._midcourse.plan
+
+    def should_trigger_midcourse(self, state: VehicleState) -> bool:
+        """Whether the mid-course phase starts from ``state`` (the trigger rules above)."""
+        p = self.params
+        if p.midcourse_trigger == "off":
+            return False
+        sx, sy = self.path.start_xy_m
+        dist = math.hypot(state.x_m - sx, state.y_m - sy)
+        if p.midcourse_trigger == "paper":
+            r0 = self.path.radius_of_curvature_m(0.0)
+            return dist >= 2.0 * r0
+        return dist >= 2.0 * p.circle_radius_m
+
+    def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
+        """One guidance tick: the lateral acceleration command and its internals."""
+        if not self._started:
+            self._started = True
+            if self.should_trigger_midcourse(state):
+                plan = plan_midcourse(state.x_m, state.y_m, state.course_rad, state.speed_m_s,
+                                      self.path.start_xy_m, self.path.start_heading_rad,
+                                      self.params.circle_radius_m)
+                self._midcourse = MidcourseGuidance(plan, self.path.start_xy_m, self.params.l1_m)
+        if self._finished:
+            return self._finished_output(state)
+        if self._midcourse is not None and self._midcourse.stage != "done":
+            out = self._midcourse_step(t_s, state)
+            if out is not None:
+                return out
+        return self._close_range_step(t_s, state)
+
+    # ------------------------------------------------------------------ phases
+    def _midcourse_step(self, t_s: float, state: VehicleState) -> GuidanceOutput | None:
+        mc = self._midcourse
+        a, stage, done = mc.step(t_s, state.x_m, state.y_m, state.course_rad, state.speed_m_s)
+        if done:
+            mc.stage = "done"
+            self._s_proj = 0.0  # close range starts at the path start
+            return None
+        sx, sy = self.path.start_xy_m
+        # The paper takes the distance to the path start as the mid-course cross-track error.
+        dist = math.hypot(state.x_m - sx, state.y_m - sy)
+        plan = mc.plan
+        return GuidanceOutput(
+            a_cmd_m_s2=a, phase="midcourse", crosstrack_m=dist, s_proj_m=0.0,
+            lookahead_xy_m=mc.lookahead_xy_m,
+            extra={"stage": stage, "circle": plan.chosen.circle.name, "case": plan.case,
+                   "rule": plan.rule, "contact_xy_m": plan.chosen.contact_xy_m},
+        )
+
+    def _close_range_step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
+        path, p = self.path, self.params
+        x, y, course, V = state.x_m, state.y_m, state.course_rad, state.speed_m_s
+        s_proj = path.project(x, y, self._s_proj)
+        self._s_proj = s_proj
+        px, py, tx, ty, _ = path.frame(s_proj)
+        dx, dy = x - px, y - py
+        dist = math.hypot(dx, dy)
+        crosstrack = dist if tx * dy - ty * dx >= 0.0 else -dist
+        s_look = path.lookahead(x, y, p.l1_m, s_proj)
+        if s_look is None:
+            ex, ey = path.end_xy_m
+            if not path.closed and math.hypot(x - ex, y - ey) <= p.l1_m:
+                self._finished = True
+                return self._finished_output(state, s_proj, crosstrack)
+            # Farther than L1 from the path: steer at the projection.
+            a, _, _ = l1_command(x, y, course, V, px, py)
+            return GuidanceOutput(a_cmd_m_s2=a, phase="close_range", crosstrack_m=crosstrack,
+                                  s_proj_m=s_proj, k1=self._k1, k2=self._k2,
+                                  lookahead_xy_m=(px, py), extra={"no_lookahead": True})
+        self._s_look = s_look
+        lx, ly, ltx, lty, lk = path.frame(s_look)
+        if p.method == "fixed_l1":
+            a, _, _ = l1_command(x, y, course, V, lx, ly)
+            return GuidanceOutput(a_cmd_m_s2=a, phase="close_range", crosstrack_m=crosstrack,
+                                  s_proj_m=s_proj, k1=1.0, k2=0.0, lookahead_xy_m=(lx, ly))
+        reoptimised = False
+        if t_s >= self._t_next_opt:
+            warm = ratio_from_gains(self._k1, self._k2)
+            k1, k2, window = self._optimiser.optimise(x, y, course, V, s_proj, s_look, warm)
+            self._k1, self._k2 = k1, k2
+            self._t_next_opt = t_s + window
+            reoptimised = True
+        terms = corrector_command(x, y, course, V, p.l1_m, (px, py, tx, ty),
+                                  (lx, ly, ltx, lty, lk), self._k1, self._k2)
+        return GuidanceOutput(
+            a_cmd_m_s2=terms.a_cmd_m_s2, phase="close_range", crosstrack_m=crosstrack,
+            s_proj_m=s_proj, k1=self._k1, k2=self._k2, lookahead_xy_m=(lx, ly),
+            corrector_xy_m=terms.corrector_xy_m, reoptimised=reoptimised,
+            extra={"a12_m_s2": terms.a12_m_s2, "a14_m_s2": terms.a14_m_s2, "w1": terms.w1,
+                   "w2": terms.w2},
+        )
+
+    def _finished_output(self, state: VehicleState, s_proj: float | None = None,
+                         crosstrack: float | None = None) -> GuidanceOutput:
+        if s_proj is None:
+            s_proj = self.path.project(state.x_m, state.y_m, self._s_proj)
+            crosstrack = self.path.crosstrack_m(state.x_m, state.y_m, s_proj)
+        return GuidanceOutput(a_cmd_m_s2=0.0, phase="finished", crosstrack_m=crosstrack,
+                              s_proj_m=s_proj, k1=self._k1, k2=self._k2)

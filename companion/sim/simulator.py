@@ -1,0 +1,175 @@
+"""Offline simulator: fly any guidance law on the paper's kinematics (eq. 1).
+
+    result = simulate(path, TwoPhaseGuidance(path, params), start, params)
+    result.metrics["d_rms_m"], result.x_m, result.phase
+
+The vehicle is a unicycle at constant airspeed V = ``start.speed_m_s``::
+
+    x' = V cos(psi) + wind_x,   y' = V sin(psi) + wind_y,   psi' = a / V
+
+stepped at the guidance rate (``params.rate_hz``). Each tick the law sees the state (position,
+ground course, ground speed), returns a command, and the command is held for one tick. With no
+wind and the ideal model the step is exact: a constant turn rate over the tick draws a circular
+arc, integrated in closed form.
+
+A guidance law is any object with ``step(t_s, VehicleState) -> GuidanceOutput``.
+
+Models
+------
+- ideal (``model=None``): the achieved lateral acceleration equals the command (the paper).
+- :class:`LagModel`: the achieved acceleration follows the command, first saturated at
+  ``a_max_m_s2``, with a first-order lag of time constant ``tau_s`` (exact discretisation over a
+  tick; the turn rate used for the tick is the mean of the achieved acceleration over it), plus
+  a constant wind.
+
+End of a run: the law reports ``finished`` (for :class:`TwoPhaseGuidance` on an open path, the
+look-ahead point reaching the path end), or ``t_max_s`` elapses (default: the time to fly three
+times the path length plus the distance to its start, at V).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from companion.geometry.paths import Path
+from companion.guidance.types import GuidanceParams, VehicleState
+from companion.sim.metrics import tracking_metrics
+
+
+@dataclass(frozen=True)
+class LagModel:
+    """First-order inner loop with saturation, and a constant wind (local ENU)."""
+
+    tau_s: float = 0.0
+    a_max_m_s2: float = math.inf
+    wind_enu_m_s: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.tau_s) and self.tau_s >= 0):
+            raise ValueError(f"tau_s: expected a finite number >= 0, got {self.tau_s!r}")
+        if not (self.a_max_m_s2 > 0):
+            raise ValueError(f"a_max_m_s2: expected a number > 0, got {self.a_max_m_s2!r}")
+        if len(self.wind_enu_m_s) != 2 or not all(math.isfinite(w) for w in self.wind_enu_m_s):
+            raise ValueError(f"wind_enu_m_s: expected two finite numbers, got {self.wind_enu_m_s!r}")
+
+
+@dataclass
+class SimResult:
+    """Per-tick arrays of one simulated flight and its metrics (:mod:`companion.sim.metrics`)."""
+
+    t_s: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    course_rad: np.ndarray
+    a_cmd_m_s2: np.ndarray
+    a_achieved_m_s2: np.ndarray
+    crosstrack_m: np.ndarray
+    phase: list
+    k1: np.ndarray
+    k2: np.ndarray
+    finished: bool
+    metrics: dict = field(default_factory=dict)
+    outputs: list = field(default_factory=list)  # the GuidanceOutput of every tick
+
+
+def unicycle_step(x_m: float, y_m: float, heading_rad: float, speed_m_s: float,
+                  a_m_s2: float, dt_s: float) -> tuple[float, float, float]:
+    """Exact step of eq. 1 for a constant lateral acceleration over ``dt_s`` (a circular arc)."""
+    w = a_m_s2 / speed_m_s if speed_m_s > 0 else 0.0
+    dpsi = w * dt_s
+    psi1 = heading_rad + dpsi
+    if abs(dpsi) < 1e-9:
+        return (x_m + speed_m_s * dt_s * math.cos(heading_rad + 0.5 * dpsi),
+                y_m + speed_m_s * dt_s * math.sin(heading_rad + 0.5 * dpsi), psi1)
+    r = speed_m_s / w
+    return (x_m + r * (math.sin(psi1) - math.sin(heading_rad)),
+            y_m - r * (math.cos(psi1) - math.cos(heading_rad)), psi1)
+
+
+def default_t_max_s(path: Path, start: VehicleState) -> float:
+    sx, sy = path.start_xy_m
+    dist = math.hypot(start.x_m - sx, start.y_m - sy)
+    return 3.0 * (path.length_m + dist) / max(start.speed_m_s, 0.1) + 60.0
+
+
+def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
+             model: LagModel | None = None, t_max_s: float | None = None,
+             keep_outputs: bool = False) -> SimResult:
+    """Fly ``law`` from ``start`` until it reports ``finished`` or ``t_max_s`` elapses.
+
+    Parameters
+    ----------
+    path : the reference path (used for the default ``t_max_s`` only; the law owns its path).
+    law : any object with ``step(t_s, VehicleState) -> GuidanceOutput``.
+    start : initial position, heading (= course without wind) and airspeed V.
+    params : ``rate_hz`` sets the tick.
+    model : None for the paper's ideal inner loop, or a :class:`LagModel`.
+    t_max_s : time limit (default :func:`default_t_max_s`).
+    keep_outputs : also keep every tick's :class:`GuidanceOutput` in ``result.outputs``.
+
+    Returns
+    -------
+    SimResult. The ``finished`` tick itself is not recorded (its command is 0 by definition).
+    """
+    if t_max_s is None:
+        t_max_s = default_t_max_s(path, start)
+    dt = 1.0 / params.rate_hz
+    V = start.speed_m_s
+    if not V > 0:
+        raise ValueError(f"start.speed_m_s: expected > 0, got {V!r}")
+    wind = (0.0, 0.0) if model is None else model.wind_enu_m_s
+    tau = 0.0 if model is None else model.tau_s
+    a_lim = math.inf if model is None else model.a_max_m_s2
+    lag = math.exp(-dt / tau) if tau > 0 else 0.0
+    x, y, psi = start.x_m, start.y_m, start.course_rad
+    a_ach = 0.0
+    cols = {k: [] for k in ("t", "x", "y", "course", "a", "a_ach", "d", "k1", "k2")}
+    phases: list[str] = []
+    outputs = []
+    finished = False
+    n_max = int(math.floor(t_max_s / dt + 1e-9))
+    for i in range(n_max + 1):
+        t = i * dt
+        gx = V * math.cos(psi) + wind[0]
+        gy = V * math.sin(psi) + wind[1]
+        course = math.atan2(gy, gx) if (wind[0] or wind[1]) else psi
+        ground = math.hypot(gx, gy) if (wind[0] or wind[1]) else V
+        out = law.step(t, VehicleState(x, y, course, ground))
+        if out.phase == "finished":
+            finished = True
+            break
+        a_cmd = out.a_cmd_m_s2
+        cols["t"].append(t)
+        cols["x"].append(x)
+        cols["y"].append(y)
+        cols["course"].append(course)
+        cols["a"].append(a_cmd)
+        cols["d"].append(out.crosstrack_m)
+        cols["k1"].append(out.k1)
+        cols["k2"].append(out.k2)
+        phases.append(out.phase)
+        if keep_outputs:
+            outputs.append(out)
+        if i == n_max:
+            cols["a_ach"].append(a_ach)
+            break
+        # Inner loop: saturate, then first-order lag (exact over the tick); mean over the tick.
+        target = max(-a_lim, min(a_lim, a_cmd))
+        if tau > 0:
+            a_next = target + (a_ach - target) * lag
+            a_mean = target + (a_ach - target) * tau / dt * (1.0 - lag)
+        else:
+            a_next = a_mean = target
+        cols["a_ach"].append(a_ach)
+        x, y, psi = unicycle_step(x, y, psi, V, a_mean, dt)
+        x += wind[0] * dt
+        y += wind[1] * dt
+        a_ach = a_next
+    arr = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
+    result = SimResult(arr["t"], arr["x"], arr["y"], arr["course"], arr["a"], arr["a_ach"],
+                       arr["d"], phases, arr["k1"], arr["k2"], finished, outputs=outputs)
+    result.metrics = tracking_metrics(arr["t"], arr["d"], arr["a"], phases)
+    return result
