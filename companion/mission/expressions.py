@@ -73,7 +73,8 @@ def compile_expression(text: str, variable: str) -> Callable[[np.ndarray], np.nd
     Parameters
     ----------
     text : the expression, e.g. ``"10*sin(0.078*x)"``.
-    variable : the one free name allowed (``"x"`` for function paths, ``"s"`` for parametric ones).
+    variable : the one free name allowed (``"x"`` for function paths, ``"s"`` for parametric ones;
+        ``""`` for a constant expression such as ``"2*pi"``).
 
     Returns
     -------
@@ -137,7 +138,7 @@ def _compile(node: ast.AST, variable: str, problems: list[str], depth: int):
         if node.id in CONSTANTS:
             value = CONSTANTS[node.id]
             return lambda v: value
-        allowed = ", ".join([variable, *CONSTANTS])
+        allowed = ", ".join([variable, *CONSTANTS] if variable else CONSTANTS)
         hint = " (a function name needs parentheses)" if node.id in FUNCTIONS else ""
         problems.append(f"expected a name among {allowed}, got {node.id!r}{hint}")
         return lambda v: v

@@ -379,6 +379,14 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
         "midcourse: {circle_radius_m: 10.0}",
         f"on_finish: {on_finish}",
     ]
+    if data.home is not None:
+        # Simulations start where the vehicle is after take-off: above home, facing the first waypoint.
+        x0, y0 = points[0]
+        bearing = math.degrees(math.atan2(y0, x0)) if math.hypot(x0, y0) > 1e-3 else 0.0
+        lines += [
+            "# Simulations start above home, facing the first waypoint.",
+            f"start: {{x_m: 0.0, y_m: 0.0, heading_deg: {bearing:.3f}}}",
+        ]
     text = "\n".join(lines) + "\n"
     mission = parse_mission(text, f"{source} (imported)")  # refuses what the format cannot fly
     notes += list(mission.warnings)

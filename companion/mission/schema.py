@@ -20,6 +20,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from companion.mission.expressions import ExpressionError, compile_expression
+
 _MISSING = object()
 
 
@@ -48,6 +50,14 @@ class Number:
         if self.nonzero:
             bounds.append("!= 0")
         return what + (" " + " and ".join(bounds) if bounds else "")
+
+
+@dataclass(frozen=True)
+class Constant:
+    """A finite number, or a constant expression string such as ``"2*pi"``."""
+
+    def expected(self) -> str:
+        return "a finite number or a constant expression (e.g. 2*pi)"
 
 
 @dataclass(frozen=True)
@@ -135,7 +145,7 @@ MAX_POINTS = 10000
 _FINITE = Number()
 _POSITIVE = Number(exclusive_minimum=0)
 _XY = Array(_FINITE, 2, 2, "a point [x_m, y_m] in the mission frame")
-_RANGE = Array(_FINITE, 2, 2, "[first, last], first < last")
+_RANGE = Array(Constant(), 2, 2, "[first, last], first < last; numbers or constant expressions")
 _LATLON = Array(_FINITE, 2, 2, "[lat_deg, lon_deg] on WGS-84")
 
 PATH = Tagged(
@@ -349,6 +359,18 @@ def _validate(value, spec, path, problems):
             problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
             return None
         return int(value) if spec.integer else float(value)
+    if isinstance(spec, Constant):
+        if isinstance(value, str):
+            try:
+                number = float(compile_expression(value, "")(0.0))
+            except ExpressionError as err:
+                problems.append((where, f"expected {spec.expected()}: {err.problems[0]}"))
+                return None
+            if not math.isfinite(number):
+                problems.append((where, f"expected {spec.expected()}, got {value!r} = {number}"))
+                return None
+            return number
+        return _validate(value, _FINITE, path, problems)
     if isinstance(spec, String):
         if not isinstance(value, str):
             problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
@@ -427,6 +449,8 @@ def _json(spec: Any, description: str = "") -> dict:
                 out[key] = getattr(spec, attr)
         if spec.nonzero:
             out["not"] = {"const": 0}
+    elif isinstance(spec, Constant):
+        out = {"oneOf": [{"type": "number"}, {"type": "string", "maxLength": 200}]}
     elif isinstance(spec, String):
         out = {"type": "string"}
         if spec.enum:

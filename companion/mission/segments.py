@@ -21,8 +21,9 @@ spread linearly along the loop.
 
 :func:`filleted_waypoint_path` builds such a path from waypoints: straight legs with each corner
 rounded by an arc of radius ``corner_radius_m``, blended with ``b = corner_radius_m / 2``
-(capped by the shortest piece). The path passes through the first and last waypoints (open paths)
-but cuts every corner.
+(capped by the shortest piece). The path passes through the first and last waypoints (open paths:
+the small lateral shift each ramp causes, about b^2 / (24 R) per corner, is spread linearly along
+the path) but cuts every corner.
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ def _cumulative_curvature(boundaries: np.ndarray, kappa: np.ndarray, closed: boo
 
 
 def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float, *, closed: bool,
-                  where: str = "path", problem: Problem | None = None) -> Path | None:
+                  where: str = "path", problem: Problem | None = None,
+                  pin_end: bool = False) -> Path | None:
     """A C^2 path from tangent lines and arcs.
 
     Parameters
@@ -77,6 +79,8 @@ def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float
     closed : the segments form a loop.
     where, problem : where to report problems: ``problem(key_path, message)``; when None, a
         problem raises ``ValueError``.
+    pin_end : (open paths) spread the end-point shift the blends cause linearly along the path,
+        so the path ends exactly where the unblended lines and arcs end.
 
     Returns
     -------
@@ -163,6 +167,9 @@ def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float
     ys = start_xy_m[1] + np.concatenate(([0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * ds)))
     del curvature  # the path recomputes curvature from the positions' spline
     bc = "not-a-knot"
+    if pin_end and not closed:
+        xs = xs + (x - xs[-1]) * s / total
+        ys = ys + (y - ys[-1]) * s / total
     if closed:
         gx, gy = xs[-1] - xs[0], ys[-1] - ys[0]
         xs = xs - gx * s / total
@@ -250,4 +257,4 @@ def filleted_waypoint_path(points_xy_m, corner_radius_m: float, *, closed: bool,
     shortest = min(size * (abs(t) if kind == "arc" else 1.0) for kind, size, t in segs)
     blend = min(0.5 * r, shortest)
     return segments_path((float(start[0]), float(start[1])), heading, segs, blend, closed=closed,
-                         where=where, problem=problem)
+                         where=where, problem=problem, pin_end=True)
