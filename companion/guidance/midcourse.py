@@ -129,8 +129,11 @@ def contact_approach(x_m: float, y_m: float, course_rad: float, speed_m_s: float
         c = 0.0
         wx, wy = ox - sigma * r * nvx, oy - sigma * r * nvy
         tangency = "external"
-        turn = 0.0
         arc = (wx - x_m) * vx + (wy - y_m) * vy
+        # A straight approach only reaches a contact point ahead; one behind is out of reach
+        # (the limit of ever larger circles): mark it as a full turn so that it is turned in to.
+        turn = 0.0 if arc >= 0.0 else TWO_PI
+        arc = arc if arc >= 0.0 else math.inf
     else:
         rho = 1.0 / c  # signed radius; centre Q = P + rho n_v
         qx, qy = x_m + rho * nvx, y_m + rho * nvy
@@ -196,22 +199,40 @@ def circle_lookahead(x_m: float, y_m: float, circle: InitiationCircle,
 
 
 class MidcourseGuidance:
-    """Flies one :class:`MidcoursePlan`: the constant-command arc, then the initiation circle.
+    """Flies the mid-course phase: turn-in (if needed), the constant-command arc, the circle.
 
-    ``step`` returns ``(a_cmd_m_s2, stage, done)``; ``stage`` is ``"approach"`` or ``"circle"``
-    and ``done`` turns True on the tick the vehicle passes the path start on the circle.
+    The paper only considers vehicles heading towards the initiation circle (angle between the
+    velocity and the line to the circle centre at most 90 deg). Outside that scope lemma 1's
+    arc can be a huge loop (a kilometre for a vehicle flying away). So when the chosen approach
+    needs a course change of more than ``TURN_IN_LIMIT_RAD`` on its arc, the vehicle first
+    *turns in*: it turns towards the chosen circle's centre (the side is decided on the first
+    tick and kept) at the circle's own command ``V^2 / R`` and re-plans every tick until the plan's arc turns less than that limit.
+
+    ``step`` returns ``(a_cmd_m_s2, stage, done)``; ``stage`` is ``"turn_in"``, ``"approach"``
+    or ``"circle"`` and ``done`` turns True on the tick the vehicle passes the path start on the
+    circle.
     """
 
-    def __init__(self, plan: MidcoursePlan, start_xy_m: tuple[float, float], l1_m: float):
-        self.plan = plan
-        self.circle = plan.chosen.circle
+    TURN_IN_LIMIT_RAD = math.pi
+
+    def __init__(self, start_xy_m: tuple[float, float], start_heading_rad: float,
+                 radius_m: float, l1_m: float):
         self.start_xy_m = start_xy_m
-        self.l1_circle_m = min(l1_m, math.sqrt(2.0) * self.circle.radius_m)
-        self.stage = "approach"
+        self.start_heading_rad = start_heading_rad
+        self.radius_m = radius_m
+        self.l1_circle_m = min(l1_m, math.sqrt(2.0) * radius_m)
+        self.plan: MidcoursePlan | None = None
+        self.first_plan: MidcoursePlan | None = None
+        self.stage = "turn_in"
         self._flown_m = 0.0
         self._t_prev: float | None = None
         self._remaining_prev: float | None = None
-        self.lookahead_xy_m: tuple[float, float] | None = plan.chosen.contact_xy_m
+        self._turn_sign = 0
+        self.lookahead_xy_m: tuple[float, float] | None = None
+
+    @property
+    def circle(self) -> InitiationCircle:
+        return self.plan.chosen.circle
 
     def _remaining_rad(self, x_m: float, y_m: float) -> float:
         """Angle still to fly on the circle before the path start, in ``[0, 2 pi)``."""
@@ -221,13 +242,29 @@ class MidcourseGuidance:
 
     def step(self, t_s: float, x_m: float, y_m: float, course_rad: float,
              speed_m_s: float) -> tuple[float, str, bool]:
-        if self._t_prev is not None:
-            self._flown_m += max(t_s - self._t_prev, 0.0) * speed_m_s
-        dt_guess = 0.0 if self._t_prev is None else max(t_s - self._t_prev, 0.0)
+        dt = 0.0 if self._t_prev is None else max(t_s - self._t_prev, 0.0)
         self._t_prev = t_s
+        if self.stage == "turn_in":
+            plan = plan_midcourse(x_m, y_m, course_rad, speed_m_s, self.start_xy_m,
+                                  self.start_heading_rad, self.radius_m)
+            if self.first_plan is None:
+                self.first_plan = plan
+            self.plan = plan
+            if plan.chosen.turn_rad <= self.TURN_IN_LIMIT_RAD:
+                self.stage = "approach"
+                self._flown_m = 0.0
+                dt = 0.0
+            else:
+                ox, oy = plan.chosen.circle.centre_xy_m
+                if self._turn_sign == 0:  # chosen once, so that re-plans cannot make it dither
+                    side = math.cos(course_rad) * (oy - y_m) - math.sin(course_rad) * (ox - x_m)
+                    self._turn_sign = 1 if side >= 0.0 else -1
+                self.lookahead_xy_m = (ox, oy)
+                return self._turn_sign * speed_m_s * speed_m_s / self.radius_m, "turn_in", False
         if self.stage == "approach":
-            # Half a tick early is the closest tick to W.
-            if self._flown_m + 0.5 * speed_m_s * dt_guess >= self.plan.chosen.arc_m:
+            self._flown_m += dt * speed_m_s
+            # Switch on the tick closest to W (half a tick early).
+            if self._flown_m + 0.5 * speed_m_s * dt >= self.plan.chosen.arc_m:
                 self.stage = "circle"
             else:
                 self.lookahead_xy_m = self.plan.chosen.contact_xy_m

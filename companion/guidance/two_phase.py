@@ -39,7 +39,7 @@ import math
 from companion.geometry.paths import Path
 from companion.guidance.corrector import corrector_command
 from companion.guidance.l1 import l1_command
-from companion.guidance.midcourse import MidcourseGuidance, plan_midcourse
+from companion.guidance.midcourse import MidcourseGuidance
 from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
 from companion.guidance.types import GuidanceOutput, GuidanceParams, VehicleState
 
@@ -89,10 +89,9 @@ class TwoPhaseGuidance:
         if not self._started:
             self._started = True
             if self.should_trigger_midcourse(state):
-                plan = plan_midcourse(state.x_m, state.y_m, state.course_rad, state.speed_m_s,
-                                      self.path.start_xy_m, self.path.start_heading_rad,
-                                      self.params.circle_radius_m)
-                self._midcourse = MidcourseGuidance(plan, self.path.start_xy_m, self.params.l1_m)
+                self._midcourse = MidcourseGuidance(self.path.start_xy_m,
+                                                    self.path.start_heading_rad,
+                                                    self.params.circle_radius_m, self.params.l1_m)
         if self._finished:
             return self._finished_output(state)
         if self._midcourse is not None and self._midcourse.stage != "done":

@@ -1,0 +1,155 @@
+"""``companion sim MISSION``: fly a mission offline on the paper's kinematics and print the metrics.
+
+    companion sim missions/paper_sine.yaml
+    companion sim missions/paper_sine.yaml --method fixed_l1 --heading-deg 24.118 --json
+    companion sim missions/paper_far_start.yaml --plot far.png
+
+The start is the mission's ``start:`` unless ``--start X,Y`` / ``--heading-deg H`` override it;
+with neither, the vehicle starts on the path start with the path's heading.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from companion.errors import CompanionError, MissionError
+from companion.guidance.types import METHODS, VehicleState
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "sim", help="simulate a mission offline (paper kinematics) and print tracking metrics",
+        description="Fly a mission offline with the unicycle model of the paper and print "
+                    "d_rms_m, a_rms_m_s2, a_max_m_s2, duration_s and the per-phase figures.")
+    parser.add_argument("mission", help="mission YAML file")
+    parser.add_argument("--method", choices=METHODS, help="override the mission's guidance method")
+    parser.add_argument("--heading-deg", type=float, help="initial heading, degrees anticlockwise from east")
+    parser.add_argument("--start", type=_parse_xy, metavar="X,Y", help="initial position, local ENU metres")
+    parser.add_argument("--t-max-s", type=float, help="time limit of the simulation")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--plot", metavar="OUT.png", help="save a plot of the path, track, error and command")
+    parser.set_defaults(func=run)
+
+
+def _parse_xy(text: str) -> tuple[float, float]:
+    import argparse
+
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y in metres (e.g. -15,0), got {text!r}")
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise argparse.ArgumentTypeError(f"expected finite X,Y, got {text!r}")
+    return x, y
+
+
+def run(args) -> int:
+    import dataclasses
+
+    from companion.guidance.two_phase import TwoPhaseGuidance
+    from companion.mission import load_mission
+    from companion.sim.simulator import simulate
+
+    mission = load_mission(args.mission)
+    params = mission.guidance
+    if args.method:
+        params = dataclasses.replace(params, method=args.method)
+    path = mission.path
+    if mission.start is not None:
+        x0, y0, h0 = mission.start.x_m, mission.start.y_m, mission.start.heading_rad
+    else:
+        (x0, y0), h0 = path.start_xy_m, path.start_heading_rad
+    if args.start is not None:
+        x0, y0 = args.start
+    if args.heading_deg is not None:
+        if not math.isfinite(args.heading_deg):
+            raise MissionError(f"--heading-deg: expected a finite number, got {args.heading_deg}")
+        h0 = math.radians(args.heading_deg)
+    if args.t_max_s is not None and not args.t_max_s > 0:
+        raise MissionError(f"--t-max-s: expected a number > 0, got {args.t_max_s}")
+    start = VehicleState(x0, y0, h0, mission.speed_m_s)
+    law = TwoPhaseGuidance(path, params)
+    result = simulate(path, law, start, params, t_max_s=args.t_max_s)
+    metrics = result.metrics
+    summary = {
+        "mission": mission.name, "method": params.method,
+        "start": {"x_m": x0, "y_m": y0, "heading_deg": math.degrees(h0)},
+        "finished": result.finished,
+        **{k: _finite_or_none(v) for k, v in metrics.items() if k != "phases"},
+        "phases": {name: {k: _finite_or_none(v) for k, v in m.items()}
+                   for name, m in metrics["phases"].items()},
+    }
+    plan = law.midcourse_plan
+    if plan is not None:
+        summary["midcourse"] = {"case": plan.case, "rule": plan.rule, "circle": plan.chosen.circle.name,
+                                "contact_xy_m": list(plan.chosen.contact_xy_m),
+                                "a_cmd_m_s2": plan.chosen.a_cmd_m_s2}
+    if args.plot:
+        _plot(args.plot, mission, path, result)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    print(f"mission {mission.name}: method {params.method}, start ({x0:.3f}, {y0:.3f}) m, "
+          f"heading {math.degrees(h0):.3f} deg, V {mission.speed_m_s:g} m/s, L1 {params.l1_m:g} m")
+    end = "path end reached" if result.finished else "time limit reached"
+    print(f"{end} after {metrics['duration_s']:.2f} s ({metrics['samples']} ticks at {params.rate_hz:g} Hz)")
+    if plan is not None:
+        c = plan.chosen
+        print(f"mid-course: case {plan.case}, {c.circle.name} initiation circle, contact point "
+              f"({c.contact_xy_m[0]:.2f}, {c.contact_xy_m[1]:.2f}) m, constant command {c.a_cmd_m_s2:.3f} m/s^2")
+    header = f"{'':14s}{'d_rms_m':>10s}{'d_max_m':>10s}{'a_rms_m_s2':>12s}{'a_max_m_s2':>12s}{'duration_s':>12s}"
+    print(header)
+    rows = [("overall", metrics)] + list(metrics["phases"].items())
+    for name, m in rows:
+        print(f"{name:14s}{m['d_rms_m']:10.3f}{m['d_max_m']:10.3f}{m['a_rms_m_s2']:12.3f}"
+              f"{m['a_max_m_s2']:12.3f}{m['duration_s']:12.2f}")
+    if args.plot:
+        print(f"plot written to {args.plot}")
+    return 0
+
+
+def _finite_or_none(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _plot(out_path: str, mission, path, result) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as err:  # optional dependency
+        raise CompanionError("--plot needs matplotlib: pip install 'companion[plot]'") from err
+    import numpy as np
+
+    _, px, py = path.sample(2000)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
+    ax = axes[0]
+    ax.plot(px, py, "k-", lw=1, label="path")
+    phases = np.asarray(result.phase)
+    for name, colour in (("midcourse", "tab:orange"), ("close_range", "tab:blue")):
+        mask = phases == name
+        if np.any(mask):
+            ax.plot(result.x_m[mask], result.y_m[mask], ".", ms=1.5, color=colour, label=name)
+    ax.plot([path.start_xy_m[0]], [path.start_xy_m[1]], "ko", ms=4)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x east (m)")
+    ax.set_ylabel("y north (m)")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(mission.name)
+    axes[1].plot(result.t_s, result.crosstrack_m)
+    axes[1].set_xlabel("t (s)")
+    axes[1].set_ylabel("cross-track (m, left +)")
+    axes[2].plot(result.t_s, result.a_cmd_m_s2)
+    axes[2].set_xlabel("t (s)")
+    axes[2].set_ylabel("a_cmd (m/s^2, left +)")
+    fig.tight_layout()
+    try:
+        fig.savefig(out_path, dpi=110)
+    except OSError as err:
+        raise CompanionError(f"--plot: cannot write {out_path}: {err.strerror}") from err
+    finally:
+        plt.close(fig)
