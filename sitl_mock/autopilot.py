@@ -41,6 +41,15 @@ MAV_FRAME_LOCAL_NED = 1
 # position, motor outputs, AHRS, pre-arm checks passed.
 SENSORS_PRESENT = (0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x400 | 0x800 | 0x1000 | 0x2000 | 0x4000 | 0x8000
                    | 0x200000 | 0x10000000)
+# ArduPilot reports the geofence healthy (not breached) even when no fence is enabled.
+SENSORS_HEALTH = SENSORS_PRESENT | 0x100000
+# MAVLink FTP (FILE_TRANSFER_PROTOCOL payload) opcodes and errors the mock answers with.
+FTP_OP_TERMINATE_SESSION = 1
+FTP_OP_RESET_SESSIONS = 2
+FTP_OP_ACK = 128
+FTP_OP_NAK = 129
+FTP_ERR_FAIL = 1
+FTP_ERR_FILE_NOT_FOUND = 10
 # AUTOPILOT_VERSION capabilities: PARAM_FLOAT, COMMAND_INT, SET_ATTITUDE_TARGET,
 # SET_POSITION_TARGET_LOCAL_NED, MAVLINK2.
 CAPABILITIES = 0x2 | 0x8 | 0x40 | 0x80 | 0x2000
@@ -228,7 +237,7 @@ class MockAutopilot:
             return mav.global_position_int_encode(ms, lat, lon, int(alt * 1000), int(-s.pos_ned_m[2] * 1000),
                                                   int(v[0] * 100), int(v[1] * 100), int(v[2] * 100), hdg)
         if msgid == MSG_SYS_STATUS:
-            return mav.sys_status_encode(SENSORS_PRESENT, SENSORS_PRESENT, SENSORS_PRESENT, 250, 12600, 500, 90,
+            return mav.sys_status_encode(SENSORS_PRESENT, SENSORS_PRESENT, SENSORS_HEALTH, 250, 12600, 500, 90,
                                          0, 0, 0, 0, 0, 0)
         if msgid == MSG_GPS_RAW_INT:
             lat, lon, alt = self.geodetic(self.model.measured_pos_ned_m())
@@ -471,7 +480,8 @@ class MockAutopilot:
         for group in groups:
             for msgid in ARDUPILOT_STREAM_GROUPS.get(group, ()):
                 if msg.start_stop and msg.req_message_rate > 0:
-                    self._set_stream(link, msgid, 1.0 / msg.req_message_rate)
+                    rate_hz = min(msg.req_message_rate, 1.0) if msgid == MSG_HOME_POSITION else msg.req_message_rate
+                    self._set_stream(link, msgid, 1.0 / rate_hz)
                 else:
                     self._set_stream(link, msgid, None)
 
@@ -484,6 +494,28 @@ class MockAutopilot:
 
     def _on_heartbeat(self, link: Link, msg, src) -> None:
         pass
+
+    def _on_ftp(self, link: Link, msg, src) -> None:
+        """MAVLink FTP: the mock has no file system, so every open is answered "file not found".
+
+        Ground stations (MAVProxy, QGroundControl) try FTP first for parameters and fall back to
+        the PARAM protocol on a NAK; without an answer they wait for a timeout.
+        """
+        req = bytes(msg.payload)
+        if len(req) < 12:
+            self.counters.drop("bad_value")
+            return
+        seq = req[0] | (req[1] << 8)
+        session, opcode = req[2], req[3]
+        if opcode in (FTP_OP_TERMINATE_SESSION, FTP_OP_RESET_SESSIONS):
+            reply_op, size, data = FTP_OP_ACK, 0, b""
+        else:
+            error = FTP_ERR_FILE_NOT_FOUND if opcode in (3, 4, 6, 11, 12) else FTP_ERR_FAIL
+            reply_op, size, data = FTP_OP_NAK, 1, bytes([error])
+        payload = bytes([(seq + 1) & 0xFF, ((seq + 1) >> 8) & 0xFF, session, reply_op, size, opcode, 0, 0,
+                         0, 0, 0, 0]) + data
+        payload += bytes(251 - len(payload))
+        link.send(link.mav.file_transfer_protocol_encode(0, src[0], src[1], payload))
 
     _handlers = {
         "COMMAND_LONG": _on_command,
@@ -498,6 +530,7 @@ class MockAutopilot:
         "TIMESYNC": _on_timesync,
         "MISSION_REQUEST_LIST": _on_mission_request_list,
         "HEARTBEAT": _on_heartbeat,
+        "FILE_TRANSFER_PROTOCOL": _on_ftp,
     }
 
     # ------------------------------------------------------------------ run loop

@@ -1,0 +1,156 @@
+"""The point-mass model against closed forms: first-order lags, limits, coordinated turns, seeds."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from sitl_mock.vehicle import GRAVITY_M_S2, VehicleModel, VehicleParams
+
+DT_S = 1.0 / 400.0
+
+
+def copter(**kw) -> VehicleModel:
+    return VehicleModel(VehicleParams(kind="copter", **kw), (0.0, 0.0, -10.0), 0.0, airborne=True)
+
+
+def run(model: VehicleModel, seconds: float, vel=(0.0, 0.0, 0.0), yaw_rate=0.0) -> None:
+    for _ in range(round(seconds / DT_S)):
+        model.step_multirotor(DT_S, vel, yaw_rate)
+
+
+@pytest.mark.parametrize("tau_s", [0.1, 0.3, 0.8])
+def test_yaw_rate_step_reaches_63_percent_after_one_time_constant(tau_s):
+    model = copter(tau_yaw_rate_s=tau_s)
+    command = math.radians(30.0)  # below the 90 deg/s limit
+    run(model, tau_s, yaw_rate=command)
+    assert model.state.yaw_rate_rad_s / command == pytest.approx(1.0 - math.exp(-1.0), abs=1e-6)
+    run(model, 4 * tau_s, yaw_rate=command)
+    assert model.state.yaw_rate_rad_s / command == pytest.approx(1.0 - math.exp(-5.0), abs=1e-6)
+
+
+def test_velocity_step_below_the_acceleration_limit_follows_the_first_order_lag():
+    # 1 m/s step with tau 0.3 s: the largest acceleration is 1/0.3 = 3.3 m/s^2 < 5 m/s^2.
+    model = copter(tau_vel_s=0.3)
+    run(model, 0.3, vel=(1.0, 0.0, 0.0))
+    assert model.state.vel_ned_m_s[0] == pytest.approx(1.0 - math.exp(-1.0), abs=1e-6)
+    # Position of a first-order lag step: x(t) = v (t - tau (1 - exp(-t/tau))).
+    expected_x = 1.0 * (0.3 - 0.3 * (1.0 - math.exp(-1.0)))
+    assert model.state.pos_ned_m[0] == pytest.approx(expected_x, abs=2e-4)
+
+
+def test_large_velocity_step_is_acceleration_limited():
+    model = copter(tau_vel_s=0.3, a_max_m_s2=2.0)
+    speeds = []
+    for _ in range(round(1.0 / DT_S)):
+        model.step_multirotor(DT_S, (6.0, 8.0, 0.0), 0.0)  # 10 m/s, diagonal
+        speeds.append(math.hypot(*model.state.vel_ned_m_s[:2]))
+    accels = [(b - a) / DT_S for a, b in zip([0.0] + speeds, speeds)]
+    assert max(accels) <= 2.0 + 1e-9
+    # Saturated the whole second: exactly a_max * t, along the commanded direction.
+    assert speeds[-1] == pytest.approx(2.0, abs=1e-9)
+    assert model.state.vel_ned_m_s[1] / model.state.vel_ned_m_s[0] == pytest.approx(8.0 / 6.0)
+
+
+def test_yaw_rate_command_is_clipped_to_the_limit():
+    model = copter(yaw_rate_max_rad_s=math.radians(45.0), tau_yaw_rate_s=0.1)
+    run(model, 2.0, yaw_rate=math.radians(400.0))
+    assert model.state.yaw_rate_rad_s == pytest.approx(math.radians(45.0), rel=1e-6)
+
+
+def test_yaw_stays_wrapped_to_plus_minus_pi():
+    model = copter(tau_yaw_rate_s=0.0)
+    run(model, 5.0, yaw_rate=math.radians(80.0))  # 400 degrees
+    assert -math.pi < model.state.yaw_rad <= math.pi
+    assert math.degrees(model.state.yaw_rad) == pytest.approx(40.0, abs=0.5)
+
+
+def test_copter_lands_on_the_ground_and_stays_there():
+    model = copter(tau_vel_s=0.1)
+    run(model, 8.0, vel=(0.0, 0.0, 3.0))
+    assert model.state.pos_ned_m[2] == 0.0
+    assert model.state.on_ground
+    assert model.state.vel_ned_m_s == [0.0, 0.0, 0.0]
+
+
+def test_plane_turns_at_g_tan_roll_over_v_on_a_circle_of_radius_v2_over_g_tan_roll():
+    params = VehicleParams(kind="plane", airspeed_cruise_m_s=15.0, tau_roll_s=0.0)
+    model = VehicleModel(params, (0.0, 0.0, -100.0), 0.0, airborne=True)
+    roll = math.radians(30.0)
+    model.step_plane(DT_S, roll, 15.0, 0.0)
+    expected_rate = GRAVITY_M_S2 * math.tan(roll) / 15.0
+    assert model.state.yaw_rate_rad_s == pytest.approx(expected_rate, rel=1e-9)
+    radius = 15.0 ** 2 / (GRAVITY_M_S2 * math.tan(roll))
+    # Half a turn to the right from heading north: the plane ends 2R east of where it started.
+    half_turn_s = math.pi / expected_rate
+    for _ in range(round(half_turn_s / DT_S) - 1):
+        model.step_plane(DT_S, roll, 15.0, 0.0)
+    assert model.state.pos_ned_m[1] == pytest.approx(2.0 * radius, rel=2e-3)
+    assert abs(model.state.pos_ned_m[0]) < 0.01 * radius
+
+
+def test_plane_never_flies_below_its_minimum_airspeed():
+    params = VehicleParams(kind="plane", airspeed_cruise_m_s=15.0, airspeed_min_m_s=11.0)
+    model = VehicleModel(params, (0.0, 0.0, -100.0), 0.0, airborne=True)
+    for _ in range(round(10.0 / DT_S)):
+        model.step_plane(DT_S, 0.0, 0.0, 0.0)
+    assert model.state.airspeed_m_s == pytest.approx(11.0)
+
+
+def test_plane_bank_is_limited_and_lags_with_its_time_constant():
+    params = VehicleParams(kind="plane", tau_roll_s=0.5, roll_max_rad=math.radians(35.0))
+    model = VehicleModel(params, (0.0, 0.0, -100.0), 0.0, airborne=True)
+    for _ in range(round(0.5 / DT_S)):
+        model.step_plane(DT_S, math.radians(90.0), 15.0, 0.0)
+    assert model.state.roll_rad == pytest.approx(math.radians(35.0) * (1 - math.exp(-1.0)), rel=1e-6)
+
+
+def test_plane_drifts_with_the_wind():
+    params = VehicleParams(kind="plane", wind_ned_m_s=(0.0, 5.0))
+    model = VehicleModel(params, (0.0, 0.0, -100.0), 0.0, airborne=True)
+    for _ in range(round(10.0 / DT_S)):
+        model.step_plane(DT_S, 0.0, 15.0, 0.0)
+    assert model.state.pos_ned_m[0] == pytest.approx(150.0, rel=1e-3)
+    assert model.state.pos_ned_m[1] == pytest.approx(50.0, rel=1e-3)
+
+
+def test_rover_stays_on_the_ground_and_points_along_its_track():
+    model = VehicleModel(VehicleParams(kind="rover", a_max_m_s2=3.0), (0.0, 0.0, -5.0), 0.0, airborne=True)
+    for _ in range(round(5.0 / DT_S)):
+        model.step_multirotor(DT_S, (1.0, 1.0, -2.0), 0.0)
+    assert model.state.pos_ned_m[2] == 0.0
+    assert math.degrees(model.state.yaw_rad) == pytest.approx(45.0, abs=0.1)
+
+
+def noisy_track(seed: int) -> list[tuple[float, float, float]]:
+    model = VehicleModel(VehicleParams(kind="copter", pos_noise_m=0.5, seed=seed), (0.0, 0.0, -10.0), 0.0, True)
+    track = []
+    for i in range(400):
+        model.step_multirotor(DT_S, (2.0, math.sin(i / 50.0), 0.0), 0.3)
+        track.append(model.measured_pos_ned_m())
+    return track
+
+
+def test_same_seed_same_track_and_another_seed_another_track():
+    assert noisy_track(7) == noisy_track(7)
+    assert noisy_track(7) != noisy_track(8)
+
+
+def test_noise_has_the_requested_spread():
+    model = VehicleModel(VehicleParams(kind="copter", pos_noise_m=0.5, seed=3), (0.0, 0.0, 0.0), 0.0, False)
+    samples = []
+    for _ in range(4000):
+        model.step_multirotor(DT_S, (0.0, 0.0, 0.0), 0.0, grounded=True)
+        samples.append(model.measured_pos_ned_m()[0])
+    mean = sum(samples) / len(samples)
+    std = math.sqrt(sum((s - mean) ** 2 for s in samples) / len(samples))
+    assert abs(mean) < 0.05
+    assert std == pytest.approx(0.5, rel=0.05)
+
+
+def test_invalid_parameters_are_refused_with_the_field_named():
+    with pytest.raises(ValueError, match="a_max_m_s2"):
+        VehicleParams(a_max_m_s2=-1.0)
+    with pytest.raises(ValueError, match="vehicle kind"):
+        VehicleParams(kind="boat")
