@@ -1,0 +1,548 @@
+"""``companion bench tracking``: fronts of cross-track error against acceleration, per law.
+
+A shorter look-ahead always tracks tighter and pays in acceleration, so one tuning per law proves
+little. This bench sweeps each law over its main knob and compares the resulting curves of
+``d_rms`` against ``a_rms`` (Pareto fronts), like a rate-distortion plot:
+
+===============  =============================================  ============
+law              source                                         knob
+===============  =============================================  ============
+``fixed_l1``     Park 2007 (two-phase, ``method: fixed_l1``)    L1 (m)
+``corrector``    the paper (two-phase, ``method: corrector``)   L1 (m)
+``ap_l1``        ArduPilot ``AP_L1_Control``                    period (s)
+``npfg``         PX4 NPFG                                       period (s)
+``pure_pursuit`` Coulter 1992                                   look-ahead (m)
+``predictive``   ours (:mod:`companion.guidance.predictive`)    lambda (s^4)
+===============  =============================================  ============
+
+Scenarios: the paper's sine from (-15, 0) at its 11 initial headings, a far start on the same
+sine, the gallery's racetrack, figure-eight and lawnmower missions (each from its own far
+start), and a tight S-turn. Models: ``ideal`` (the paper's kinematics) and ``lag`` (0.3 s
+first-order inner loop, |a| <= 5 m/s^2 as the mock copter, optional steady wind ``--wind``).
+
+Measurement (the same for every law, from the simulated trajectory, not from what each law
+reports): ``d`` is the signed distance to the closest path point. ``reach_s`` is the first time
+``|d| <= REACH_TOL_M``; ``d_rms_m``, ``d_max_m``, ``a_rms_m_s2`` and ``a_max_m_s2``
+(:func:`companion.sim.metrics.tracking_metrics`) cover the flight from that moment on, so a far
+start's approach is judged by ``reach_s`` and the tracking by the rest. Open paths end for every
+law when the closest point is ``END_MARGIN_M`` from the path end (or when the law finishes);
+closed paths are flown for the approach plus one lap.
+
+Summary: per scenario and model, at the ``a_rms`` of the predictive law's default tuning, each
+law's front is interpolated and the law with the lowest ``d_rms`` named, with its margin.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path as FilePath
+from typing import Callable
+
+import numpy as np
+
+from companion.errors import CompanionError
+
+REACH_TOL_M = 1.0
+END_MARGIN_M = 20.0
+SPEED_M_S = 5.0
+RATE_HZ = 50.0
+LAG_TAU_S = 0.3
+LAG_A_MAX_M_S2 = 5.0
+PAPER_HEADINGS_DEG = tuple(-20.882 + 15.0 * k for k in range(11))
+MISSIONS_DIR = FilePath(__file__).resolve().parents[2] / "missions"
+
+LAW_ORDER = ("fixed_l1", "corrector", "ap_l1", "npfg", "pure_pursuit", "predictive")
+KNOBS = {
+    "fixed_l1": "l1_m", "corrector": "l1_m", "ap_l1": "period_s", "npfg": "period_s",
+    "pure_pursuit": "lookahead_m", "predictive": "lambda_s4",
+}
+FULL_SETTINGS = {
+    "fixed_l1": (4.0, 5.0, 7.0, 10.0, 14.0, 20.0),
+    "corrector": (4.0, 5.0, 7.0, 10.0, 14.0, 20.0),
+    "ap_l1": (3.0, 4.0, 6.0, 8.0, 12.0, 17.0),
+    "npfg": (2.0, 3.0, 4.0, 6.0, 8.0, 10.0),
+    "pure_pursuit": (3.0, 4.0, 5.0, 7.0, 10.0, 14.0),
+    "predictive": (0.003, 0.01, 0.03, 0.1, 0.3, 1.0),
+}
+QUICK_SETTINGS = {
+    "fixed_l1": (5.0, 10.0),
+    "corrector": (5.0, 10.0),
+    "ap_l1": (4.0, 8.0),
+    "npfg": (3.0, 6.0),
+    "pure_pursuit": (4.0, 7.0),
+    "predictive": (0.03, 0.3),
+}
+#: The predictive law's default lambda: the summary compares the laws at its a_rms.
+DEFAULT_LAMBDA_S4 = 0.03
+QUICK_SCENARIOS = ("s_turn",)
+
+
+# ----------------------------------------------------------------------------- scenarios
+@dataclass(frozen=True)
+class Scenario:
+    """A path and a start (position, heading) at the bench speed."""
+
+    name: str
+    path: object
+    x_m: float
+    y_m: float
+    heading_rad: float
+    circle_radius_m: float = 10.0
+
+
+def _paper_sine():
+    from companion.geometry.paths import function_path
+
+    return function_path(lambda x: 10.0 * np.sin(0.078 * x) + 20.0 * np.cos(0.082 * x), (-15.0, 300.0))
+
+
+def _s_turn():
+    from companion.geometry.paths import function_path
+
+    # One full period of y = 12 sin(0.12 x): two opposite bends of 5.8 m minimum radius
+    # (V^2 / R = 4.3 m/s^2 at 5 m/s, within the 5 m/s^2 limit of the lag model).
+    return function_path(lambda x: 12.0 * np.sin(0.12 * x), (0.0, 2.0 * math.pi / 0.12 + 25.0))
+
+
+def _gallery(file_name: str) -> Scenario | None:
+    from companion.mission import load_mission
+
+    path = MISSIONS_DIR / file_name
+    if not path.exists():
+        return None
+    m = load_mission(str(path))
+    sx, sy = m.path.start_xy_m
+    start = m.start
+    if start is None:
+        return Scenario(file_name, m.path, sx, sy, m.path.start_heading_rad, m.guidance.circle_radius_m)
+    return Scenario(file_name, m.path, start.x_m, start.y_m, start.heading_rad, m.guidance.circle_radius_m)
+
+
+def scenario_names() -> list[str]:
+    names = [f"paper_sine_h{k + 1:02d}" for k in range(len(PAPER_HEADINGS_DEG))]
+    return names + ["far_start", "racetrack", "figure_eight", "lawnmower", "s_turn"]
+
+
+_CACHE: dict[str, Scenario | None] = {}
+
+
+def build_scenario(name: str) -> Scenario | None:
+    """The scenario of that name (None if its mission file is missing)."""
+    if name in _CACHE:
+        return _CACHE[name]
+    if name.startswith("paper_sine_h"):
+        k = int(name[len("paper_sine_h"):]) - 1
+        sc = Scenario(name, _paper_sine(), -15.0, 0.0, math.radians(PAPER_HEADINGS_DEG[k]))
+    elif name == "far_start":
+        sc = Scenario(name, _paper_sine(), -70.0, -50.0, math.radians(90.0))
+    elif name == "s_turn":
+        sc = Scenario(name, _s_turn(), -5.0, -2.0, 0.3)
+    elif name in ("racetrack", "figure_eight"):
+        sc = _gallery(f"{name}.yaml")
+        sc = None if sc is None else Scenario(name, sc.path, sc.x_m, sc.y_m, sc.heading_rad, sc.circle_radius_m)
+    elif name == "lawnmower":
+        sc = _gallery("survey_lawnmower.yaml")
+        sc = None if sc is None else Scenario(name, sc.path, sc.x_m, sc.y_m, sc.heading_rad, sc.circle_radius_m)
+    else:
+        raise CompanionError(f"bench tracking: unknown scenario {name!r}; expected one of {', '.join(scenario_names())}")
+    _CACHE[name] = sc
+    return sc
+
+
+# ----------------------------------------------------------------------------- laws
+@dataclass(frozen=True)
+class ModelSpec:
+    name: str  # "ideal" or "lag"
+    wind_enu_m_s: tuple[float, float] = (0.0, 0.0)
+
+    def sim_model(self):
+        from companion.sim.simulator import LagModel
+
+        if self.name == "ideal":
+            return None
+        return LagModel(tau_s=LAG_TAU_S, a_max_m_s2=LAG_A_MAX_M_S2, wind_enu_m_s=self.wind_enu_m_s)
+
+
+class _CommonEnd:
+    """Ends every law at the same place on an open path: closest point END_MARGIN_M from the end."""
+
+    def __init__(self, law, path):
+        self.law = law
+        self._end_s = path.length_m - END_MARGIN_M if not path.closed else math.inf
+
+    def step(self, t_s, state):
+        out = self.law.step(t_s, state)
+        if out.phase != "finished" and out.phase != "midcourse" and out.s_proj_m >= self._end_s:
+            from dataclasses import replace
+
+            return replace(out, phase="finished")
+        return out
+
+
+def make_law(law: str, setting: float, sc: Scenario, model: ModelSpec):
+    """A fresh guidance object for one run."""
+    path = sc.path
+    wx, wy = model.wind_enu_m_s
+    if law in ("fixed_l1", "corrector"):
+        from companion.guidance.two_phase import TwoPhaseGuidance
+        from companion.guidance.types import GuidanceParams
+
+        params = GuidanceParams(method=law, l1_m=setting, speed_m_s=SPEED_M_S, rate_hz=RATE_HZ,
+                                circle_radius_m=sc.circle_radius_m)
+        return TwoPhaseGuidance(path, params)
+    if law == "ap_l1":
+        from companion.guidance.baselines import ApL1Guidance, ApL1Params
+
+        return ApL1Guidance(path, ApL1Params(period_s=setting))
+    if law == "npfg":
+        from companion.guidance.baselines import NpfgGuidance, NpfgParams
+
+        return NpfgGuidance(path, NpfgParams(period_s=setting, wind_x_m_s=wx, wind_y_m_s=wy))
+    if law == "pure_pursuit":
+        from companion.guidance.baselines import PurePursuitGuidance, PurePursuitParams
+
+        return PurePursuitGuidance(path, PurePursuitParams(lookahead_m=setting))
+    if law == "predictive":
+        from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
+
+        if model.name == "ideal":
+            params = PredictiveParams(lambda_s4=setting)
+        else:
+            params = PredictiveParams(lambda_s4=setting, lag_s=LAG_TAU_S, a_max_m_s2=LAG_A_MAX_M_S2,
+                                      wind_x_m_s=wx, wind_y_m_s=wy)
+        return PredictiveGuidance(path, params)
+    raise CompanionError(f"bench tracking: unknown law {law!r}; expected one of {', '.join(LAW_ORDER)}")
+
+
+# ----------------------------------------------------------------------------- one run
+def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
+    """Signed distance to the closest path point along a trajectory (projection kept continuous)."""
+    d = np.empty(x_m.size)
+    s = None
+    for i in range(x_m.size):
+        s = path.project(float(x_m[i]), float(y_m[i]), s)
+        d[i] = path.crosstrack_m(float(x_m[i]), float(y_m[i]), s)
+    return d
+
+
+def run_one(task: tuple) -> dict:
+    """Simulate one (scenario, model, law, setting) and measure it; returns one row."""
+    from companion.guidance.types import GuidanceParams, VehicleState
+    from companion.sim.metrics import tracking_metrics
+    from companion.sim.simulator import simulate
+
+    scenario_name, model, law, setting = task
+    sc = build_scenario(scenario_name)
+    path = sc.path
+    start = VehicleState(sc.x_m, sc.y_m, sc.heading_rad, SPEED_M_S)
+    if path.closed:
+        sx, sy = path.start_xy_m
+        t_max = (math.hypot(sc.x_m - sx, sc.y_m - sy) + path.length_m) / SPEED_M_S + 10.0
+    else:
+        t_max = None
+    t0 = time.perf_counter()
+    guidance = _CommonEnd(make_law(law, setting, sc, model), path)
+    res = simulate(path, guidance, start, GuidanceParams(speed_m_s=SPEED_M_S, rate_hz=RATE_HZ),
+                   model=model.sim_model(), t_max_s=t_max)
+    wall = time.perf_counter() - t0
+    d = true_crosstrack_m(path, res.x_m, res.y_m)
+    reached = np.flatnonzero(np.abs(d) <= REACH_TOL_M)
+    row = {"scenario": scenario_name, "model": model.name, "law": law, "setting": setting,
+           "knob": KNOBS[law]}
+    if reached.size == 0:
+        row.update(d_rms_m=math.nan, d_max_m=math.nan, a_rms_m_s2=math.nan, a_max_m_s2=math.nan,
+                   reach_s=math.nan)
+    else:
+        i0 = int(reached[0])
+        m = tracking_metrics(res.t_s[i0:], d[i0:], res.a_cmd_m_s2[i0:])
+        row.update(d_rms_m=m["d_rms_m"], d_max_m=m["d_max_m"], a_rms_m_s2=m["a_rms_m_s2"],
+                   a_max_m_s2=m["a_max_m_s2"], reach_s=float(res.t_s[i0]))
+    row["duration_s"] = float(res.t_s[-1]) if res.t_s.size else 0.0
+    row["wall_s"] = wall
+    return row
+
+
+# ----------------------------------------------------------------------------- fronts
+def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Non-dominated (a_rms, d_rms) points, sorted by a_rms (both to be minimised).
+
+    A point is dominated when another has a_rms <= and d_rms <= with one strictly lower.
+    """
+    pts = sorted({(a, d) for a, d in points if math.isfinite(a) and math.isfinite(d)})
+    front: list[tuple[float, float]] = []
+    best_d = math.inf
+    for a, d in pts:
+        if d < best_d:
+            front.append((a, d))
+            best_d = d
+    return front
+
+
+def front_at(front: list[tuple[float, float]], a_rms: float) -> float | None:
+    """d_rms of a front at a given a_rms: the best d of the points with a_rms <= the given one,
+    linearly interpolated between neighbours; None below the front's smallest a_rms.
+
+    (A law can always be detuned, so above its largest a_rms the front keeps its last value.)
+    """
+    if not front or a_rms < front[0][0]:
+        return None
+    for (a0, d0), (a1, d1) in zip(front, front[1:]):
+        if a0 <= a_rms <= a1:
+            return d0 + (d1 - d0) * (a_rms - a0) / (a1 - a0) if a1 > a0 else min(d0, d1)
+    return front[-1][1]
+
+
+def fronts_by_group(rows: list[dict]) -> dict:
+    """``{(scenario, model): {law: front}}``."""
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault((r["scenario"], r["model"]), {}).setdefault(r["law"], []).append(
+            (r["a_rms_m_s2"], r["d_rms_m"]))
+    return {k: {law: pareto_front(p) for law, p in v.items()} for k, v in groups.items()}
+
+
+def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> list[dict]:
+    """Per scenario and model: which law tracks best at the a_rms of our default tuning.
+
+    Also counts the other laws' front points that lie below the predictive front (``beaten_at``:
+    points where a baseline has lower d_rms than predictive at equal a_rms).
+    """
+    out = []
+    fronts = fronts_by_group(rows)
+    for (scenario, model), laws in fronts.items():
+        ref = [r for r in rows if r["scenario"] == scenario and r["model"] == model
+               and r["law"] == "predictive" and r["setting"] == default_lambda]
+        entry = {"scenario": scenario, "model": model}
+        if not ref or not math.isfinite(ref[0]["a_rms_m_s2"]):
+            entry.update(a_rms_ref_m_s2=None, best_law=None, d_rms_by_law={})
+            out.append(entry)
+            continue
+        a_ref = ref[0]["a_rms_m_s2"]
+        at = {law: front_at(front, a_ref) for law, front in laws.items()}
+        valid = {law: d for law, d in at.items() if d is not None}
+        ranked = sorted(valid.items(), key=lambda kv: kv[1])
+        best_law, best_d = ranked[0] if ranked else (None, None)
+        runner = ranked[1] if len(ranked) > 1 else (None, None)
+        pred_front = laws.get("predictive", [])
+        beaten = []
+        for law, front in laws.items():
+            if law == "predictive":
+                continue
+            for a, d in front:
+                dp = front_at(pred_front, a)
+                if dp is not None and d < dp - 1e-9:
+                    beaten.append({"law": law, "a_rms_m_s2": a, "d_rms_m": d, "predictive_d_rms_m": dp})
+        entry.update(
+            a_rms_ref_m_s2=a_ref, best_law=best_law, best_d_rms_m=best_d,
+            runner_up=runner[0], runner_up_d_rms_m=runner[1],
+            margin_m=(runner[1] - best_d) if runner[0] else None,
+            d_rms_by_law={law: valid.get(law) for law in LAW_ORDER if law in laws},
+            predictive_beaten_at=beaten,
+        )
+        out.append(entry)
+    return out
+
+
+# ----------------------------------------------------------------------------- output
+def _fmt(v, nd=3) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{v:.{nd}f}"
+
+
+def render_tables(rows: list[dict], summary: list[dict]) -> str:
+    lines = []
+    by_group: dict = {}
+    for r in rows:
+        by_group.setdefault((r["scenario"], r["model"]), []).append(r)
+    fronts = fronts_by_group(rows)
+    for (scenario, model), group in by_group.items():
+        lines.append(f"## {scenario} / {model}")
+        lines.append(f"{'law':13s} {'knob':12s} {'setting':>8s} {'d_rms_m':>8s} {'d_max_m':>8s} "
+                     f"{'a_rms':>7s} {'a_max':>7s} {'reach_s':>8s} front")
+        for r in sorted(group, key=lambda r: (LAW_ORDER.index(r["law"]), r["setting"])):
+            on_front = (r["a_rms_m_s2"], r["d_rms_m"]) in fronts[(scenario, model)].get(r["law"], [])
+            lines.append(f"{r['law']:13s} {r['knob']:12s} {r['setting']:8g} {_fmt(r['d_rms_m']):>8s} "
+                         f"{_fmt(r['d_max_m'], 2):>8s} {_fmt(r['a_rms_m_s2']):>7s} {_fmt(r['a_max_m_s2'], 2):>7s} "
+                         f"{_fmt(r['reach_s'], 1):>8s} {'*' if on_front else ''}")
+        lines.append("")
+    lines.append("## summary (d_rms of each front at the a_rms of predictive, lambda = "
+                 f"{DEFAULT_LAMBDA_S4:g})")
+    head = f"{'scenario':18s} {'model':6s} {'a_ref':>6s} " + " ".join(f"{law:>12s}" for law in LAW_ORDER)
+    lines.append(head + "  best (margin)  baseline points below predictive")
+    for s in summary:
+        cells = " ".join(f"{_fmt(s.get('d_rms_by_law', {}).get(law)):>12s}" for law in LAW_ORDER)
+        best = s.get("best_law") or "-"
+        margin = s.get("margin_m")
+        beaten = s.get("predictive_beaten_at", [])
+        beaten_txt = ", ".join(sorted({b["law"] for b in beaten})) or "none"
+        lines.append(f"{s['scenario']:18s} {s['model']:6s} {_fmt(s.get('a_rms_ref_m_s2'), 2):>6s} {cells}  "
+                     f"{best} ({_fmt(margin)})  {len(beaten)}: {beaten_txt}")
+    return "\n".join(lines)
+
+
+def plot_fronts(rows: list[dict], out_dir: str) -> list[str]:
+    """One PNG per model: a panel per scenario with every law's points and Pareto front."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as err:  # pragma: no cover - depends on the environment
+        raise CompanionError("bench tracking --plot: matplotlib is not installed (pip install companion[plot])") from err
+    os.makedirs(out_dir, exist_ok=True)
+    written = []
+    fronts = fronts_by_group(rows)
+    for model in sorted({r["model"] for r in rows}):
+        scenarios = [s for s in dict.fromkeys(r["scenario"] for r in rows if r["model"] == model)]
+        n = len(scenarios)
+        cols = min(4, n)
+        nrows = math.ceil(n / cols)
+        fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols, 3.4 * nrows), squeeze=False)
+        for ax, scenario in zip(axes.flat, scenarios):
+            for law in LAW_ORDER:
+                pts = [(r["a_rms_m_s2"], r["d_rms_m"]) for r in rows
+                       if r["model"] == model and r["scenario"] == scenario and r["law"] == law]
+                if not pts:
+                    continue
+                a, d = zip(*pts)
+                line = ax.plot(a, d, "o", ms=3, alpha=0.5)[0]
+                front = fronts[(scenario, model)].get(law, [])
+                if front:
+                    fa, fd = zip(*front)
+                    ax.plot(fa, fd, "-", color=line.get_color(), label=law,
+                            lw=2.2 if law == "predictive" else 1.2)
+            ax.set_title(scenario, fontsize=9)
+            ax.set_xlabel("a_rms (m/s^2)", fontsize=8)
+            ax.set_ylabel("d_rms (m)", fontsize=8)
+            ax.set_yscale("log")
+            ax.tick_params(labelsize=7)
+        for ax in list(axes.flat)[n:]:
+            ax.axis("off")
+        axes.flat[0].legend(fontsize=7)
+        fig.suptitle(f"tracking fronts, model: {model}")
+        fig.tight_layout()
+        name = os.path.join(out_dir, f"tracking_fronts_{model}.png")
+        fig.savefig(name, dpi=110)
+        plt.close(fig)
+        written.append(name)
+    return written
+
+
+# ----------------------------------------------------------------------------- CLI
+def parse_wind(text: str | None) -> tuple[float, float]:
+    if not text:
+        return (0.0, 0.0)
+    try:
+        east, north = (float(v) for v in text.split(","))
+    except ValueError:
+        raise CompanionError(f"bench tracking: --wind: expected 'EAST,NORTH' in m/s, got {text!r}") from None
+    if not (math.isfinite(east) and math.isfinite(north)):
+        raise CompanionError(f"bench tracking: --wind: expected finite numbers, got {text!r}")
+    return east, north
+
+
+def build_tasks(scenarios, laws, quick: bool, wind) -> list[tuple]:
+    settings = QUICK_SETTINGS if quick else FULL_SETTINGS
+    tasks = []
+    for name in scenarios:
+        if build_scenario(name) is None:
+            continue
+        for model in (ModelSpec("ideal"), ModelSpec("lag", wind)):
+            for law in laws:
+                for setting in settings[law]:
+                    tasks.append((name, model, law, setting))
+    return tasks
+
+
+def run_tasks(tasks: list[tuple], jobs: int, progress: Callable[[int, int], None] | None = None) -> list[dict]:
+    if jobs <= 1 or len(tasks) < 2:
+        rows = []
+        for i, t in enumerate(tasks):
+            rows.append(run_one(t))
+            if progress:
+                progress(i + 1, len(tasks))
+        return rows
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
+    # Longest first (closed paths, then the sine) keeps both workers busy to the end.
+    order = sorted(range(len(tasks)), key=lambda i: tasks[i][2] != "predictive")
+    rows: list = [None] * len(tasks)
+    with ctx.Pool(jobs) as pool:
+        for n, (i, row) in enumerate(pool.imap_unordered(_indexed_run, [(i, tasks[i]) for i in order]), 1):
+            rows[i] = row
+            if progress:
+                progress(n, len(tasks))
+    return rows
+
+
+def _indexed_run(item):
+    i, task = item
+    return i, run_one(task)
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "tracking", help="fronts of cross-track error against acceleration for every law",
+        description="Sweep every guidance law over its main knob on the scenario gallery, in the "
+                    "ideal and the lag model, and compare the Pareto fronts of d_rms against a_rms.")
+    parser.add_argument("--json", action="store_true", help="print one JSON object {rows, summary}")
+    parser.add_argument("--plot", metavar="DIR", help="write the fronts as PNG files into DIR")
+    parser.add_argument("--quick", action="store_true", help="reduced form for CI (one scenario, two settings per law)")
+    parser.add_argument("--scenario", action="append", metavar="NAME",
+                        help=f"only these scenarios (repeatable): {', '.join(scenario_names())}")
+    parser.add_argument("--law", action="append", metavar="LAW", choices=LAW_ORDER, help="only these laws (repeatable)")
+    parser.add_argument("--wind", metavar="EAST,NORTH", help="steady wind of the lag model, m/s (known to npfg and predictive)")
+    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes (default 2)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    wind = parse_wind(args.wind)
+    scenarios = args.scenario or (list(QUICK_SCENARIOS) if args.quick else scenario_names())
+    for name in scenarios:
+        if name not in scenario_names():
+            raise CompanionError(f"bench tracking: --scenario: unknown {name!r}; expected one of {', '.join(scenario_names())}")
+    laws = args.law or list(LAW_ORDER)
+    missing = [n for n in scenarios if build_scenario(n) is None]
+    tasks = build_tasks(scenarios, laws, args.quick, wind)
+    t0 = time.perf_counter()
+
+    def progress(done: int, total: int) -> None:
+        if not args.json and sys.stderr.isatty():
+            print(f"\r{done}/{total} runs", end="", file=sys.stderr, flush=True)
+
+    rows = run_tasks(tasks, max(1, args.jobs), progress)
+    if not args.json and sys.stderr.isatty():
+        print(file=sys.stderr)
+    summary = summarise(rows)
+    wall = time.perf_counter() - t0
+    if args.plot:
+        for name in plot_fronts(rows, args.plot):
+            print(f"wrote {name}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(_finite({"rows": rows, "summary": summary, "missing_scenarios": missing,
+                                  "wall_s": wall}), allow_nan=False))
+    else:
+        print(render_tables(rows, summary))
+        if missing:
+            print(f"\nskipped (mission file missing): {', '.join(missing)}")
+        print(f"\n{len(rows)} runs in {wall:.1f} s")
+    return 0
+
+
+def _finite(value):
+    """NaN and infinities to None (JSON has neither), recursively."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value

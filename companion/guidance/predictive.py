@@ -1,0 +1,378 @@
+"""``method: predictive``: look-ahead pursuit whose look-ahead distance is chosen online by
+rollouts of a vehicle model with inner-loop lag and acceleration limit, trading cross-track error
+against acceleration with one knob, lambda.
+
+Why a new law
+-------------
+The paper's corrector searches its weights with an ideal vehicle (the course turns the instant
+the command changes) and scores cross-track error only. Once the autopilot's inner loop lags the
+command (a multicopter or plane follows a lateral-acceleration or turn-rate demand with a time
+constant of a few tenths of a second), a short look-ahead that tracks tightly in the ideal model
+rings, and nothing in the search sees it. This law keeps the L1 pursuit geometry (Park 2007) and
+changes three things:
+
+1. **Lag-aware command (predictor).** The pursuit command is computed from where the vehicle will
+   be one lag time constant ``tau`` from now, coasting on the lateral acceleration it is already
+   flying (``a_hat``, from the law's own command history through the lag model): by the time the
+   new command is felt, that is where the vehicle is. With ``tau = 0`` this is exactly Park's law.
+2. **Look-ahead chosen online.** Every ``reopt_period_s`` the law rolls out the closed loop
+   (unicycle + first-order lag + ``|a| <= a_max`` + steady wind) over ``horizon_s`` for each of
+   ``n_candidates`` look-ahead distances (geometric between ``l_min_m`` and ``l_max_m``), all
+   candidates at once in numpy, and keeps the one of least cost
+   ``sum_k (d_k^2 + lambda a_k^2) dt`` (d cross-track error, a the commanded acceleration).
+   ``lambda`` (s^4) is the user's one knob: 0 tracks as tightly as the model allows, larger
+   values fly smoother.
+3. **Limits respected.** Every command (executed and in the rollouts) is clipped to ``a_max``, so
+   the flown maximum never exceeds the vehicle's limit and the search knows about saturation.
+
+Far from the path the look-ahead circle may not reach it; the law then uses
+``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
+
+Pure maths (numpy only), deterministic: the same sequence of inputs gives the same outputs.
+``docs/benchmarks.md`` shows its fronts against the other laws and where a baseline still wins.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from companion.guidance.baselines._frame import is_finished, path_frame
+from companion.guidance.types import GuidanceOutput, VehicleState
+
+SQRT2 = math.sqrt(2.0)
+WINDOW_SPACING_M = 0.5  # spacing of the local path samples the rollouts project onto
+MIN_SPEED_M_S = 0.1
+FD_STEP_M_S2 = 0.05  # finite-difference step of the plan Jacobian
+LINE_SEARCH = np.array([1.0, 0.5, 0.25])  # step fractions tried (in one batch) after a Gauss-Newton step
+
+
+@dataclass(frozen=True)
+class PredictiveParams:
+    """Tuning and vehicle model of :class:`PredictiveGuidance`.
+
+    Attributes
+    ----------
+    lambda_s4 : weight of the squared acceleration against the squared cross-track error in the
+        rollout cost (s^4), >= 0. The one tuning knob.
+    lag_s : time constant tau of the inner loop's first-order response to the commanded lateral
+        acceleration, >= 0 (0: ideal vehicle).
+    a_max_m_s2 : lateral-acceleration limit of the vehicle, > 0 (``math.inf``: none).
+    l_min_m, l_max_m : bounds of the look-ahead distance the search may choose, 0 < min <= max.
+    n_candidates : look-ahead distances tried per re-optimisation (geometric spacing), >= 1.
+    horizon_s : rollout horizon, > 0.
+    rollout_dt_s : rollout integration step, > 0.
+    reopt_period_s : time between re-optimisations, > 0.
+    plan_segments : number of piecewise-constant acceleration corrections over the horizon, >= 1.
+    refine_iterations : Gauss-Newton refinements of the corrections per re-optimisation, >= 0
+        (0: the look-ahead search alone).
+    wind_x_m_s, wind_y_m_s : known steady wind, ENU, used by the rollouts.
+    """
+
+    lambda_s4: float = 0.05
+    lag_s: float = 0.0
+    a_max_m_s2: float = math.inf
+    l_min_m: float = 3.0
+    l_max_m: float = 30.0
+    n_candidates: int = 8
+    horizon_s: float = 5.0
+    rollout_dt_s: float = 0.2
+    reopt_period_s: float = 0.2
+    plan_segments: int = 10
+    refine_iterations: int = 1
+    wind_x_m_s: float = 0.0
+    wind_y_m_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        def number(name: str) -> float:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
+                raise ValueError(f"{name}: expected a number, got {value!r}")
+            return float(value)
+
+        for name in ("lambda_s4", "lag_s"):
+            if not (math.isfinite(number(name)) and number(name) >= 0):
+                raise ValueError(f"{name}: expected a finite number >= 0, got {getattr(self, name)!r}")
+        if not number("a_max_m_s2") > 0:
+            raise ValueError(f"a_max_m_s2: expected a number > 0 (inf for none), got {self.a_max_m_s2!r}")
+        for name in ("l_min_m", "l_max_m", "horizon_s", "rollout_dt_s", "reopt_period_s"):
+            if not (math.isfinite(number(name)) and number(name) > 0):
+                raise ValueError(f"{name}: expected a finite number > 0, got {getattr(self, name)!r}")
+        if self.l_max_m < self.l_min_m:
+            raise ValueError(f"l_max_m: expected >= l_min_m ({self.l_min_m}), got {self.l_max_m!r}")
+        for name, low in (("n_candidates", 1), ("plan_segments", 1), ("refine_iterations", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+        for name in ("wind_x_m_s", "wind_y_m_s"):
+            if not math.isfinite(number(name)):
+                raise ValueError(f"{name}: expected a finite number, got {getattr(self, name)!r}")
+
+    def candidates_m(self) -> np.ndarray:
+        """The look-ahead distances the search tries (geometric from l_min_m to l_max_m)."""
+        if self.n_candidates == 1:
+            return np.array([math.sqrt(self.l_min_m * self.l_max_m)])
+        return np.geomspace(self.l_min_m, self.l_max_m, self.n_candidates)
+
+
+class _Window:
+    """Path samples from just behind the vehicle to beyond the horizon, for batched projections.
+
+    An open path is continued straight along its end tangent, as the baselines do past the end.
+    """
+
+    def __init__(self, path, s0_m: float, length_m: float):
+        total = float(path.length_m)
+        s = s0_m + np.arange(-2.0, length_m + WINDOW_SPACING_M, WINDOW_SPACING_M)
+        beyond = np.zeros(0)
+        if path.closed:
+            s = np.mod(s, total)
+        else:
+            beyond = s[s > total] - total  # continued straight along the end tangent
+            s = s[s <= total]
+            s = np.clip(s, 0.0, total)
+        if hasattr(path, "point_array"):
+            x, y = path.point_array(s)
+            tx, ty = path.tangent_array(s)
+        else:
+            pts = np.array([path.point(v) for v in s], dtype=float)
+            tng = np.array([path.tangent(v) for v in s], dtype=float)
+            x, y, tx, ty = pts[:, 0], pts[:, 1], tng[:, 0], tng[:, 1]
+        x, y, tx, ty = (np.asarray(v, dtype=float) for v in (x, y, tx, ty))
+        if beyond.size:
+            ex, ey = (float(c) for c in path.point(total))
+            etx, ety = (float(c) for c in path.tangent(total))
+            x = np.concatenate([x, ex + beyond * etx])
+            y = np.concatenate([y, ey + beyond * ety])
+            tx = np.concatenate([tx, np.full(beyond.size, etx)])
+            ty = np.concatenate([ty, np.full(beyond.size, ety)])
+        self.x, self.y, self.tx, self.ty = x, y, tx, ty
+        self.index = np.arange(self.x.size)
+
+
+_ROWS: dict[int, np.ndarray] = {}
+
+
+def _rows(n: int) -> np.ndarray:
+    """``np.arange(n)``, cached (the rollouts index rows with it every step)."""
+    r = _ROWS.get(n)
+    if r is None:
+        r = _ROWS[n] = np.arange(n)
+    return r
+
+
+def _nearest(win: _Window, x: np.ndarray, y: np.ndarray):
+    """Nearest sample index, signed cross-track error (positive left) and distance matrix."""
+    dx = win.x[None, :] - x[:, None]
+    dy = win.y[None, :] - y[:, None]
+    r2 = dx * dx + dy * dy
+    i = np.argmin(r2, axis=1)
+    rows = _rows(x.size)
+    # Distance to the tangent line at the nearest sample: exact to O(spacing^2 curvature).
+    d = win.tx[i] * (-dy[rows, i]) - win.ty[i] * (-dx[rows, i])
+    return i, d, r2
+
+
+def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s2: float):
+    """Batched pursuit command (arrays of equal length; returns commands, L_eff, goal x, goal y,
+    and the signed cross-track error at the vehicle).
+
+    Park's ``2 V^2 sin(eta) / L_eff`` towards the first path sample (linearly interpolated) at
+    distance ``L_eff = max(L, sqrt(2) |d|)`` ahead of the vehicle's closest sample, clipped to
+    ``+-a_max``.
+    """
+    v = np.maximum(speed_m_s, MIN_SPEED_M_S)
+    i0, d, r2 = _nearest(win, x, y)
+    l_eff = np.maximum(look_m, SQRT2 * np.abs(d))
+    r = np.sqrt(r2)
+    ahead = (win.index[None, :] >= i0[:, None]) & (r >= l_eff[:, None])
+    has = ahead.any(axis=1)
+    j = np.where(has, np.argmax(ahead, axis=1), win.x.size - 1)
+    jm = np.maximum(j - 1, 0)
+    rows = _rows(j.size)
+    rj, rjm = r[rows, j], r[rows, jm]
+    frac = np.where(has & (j > i0) & (rj > rjm), (l_eff - rjm) / np.maximum(rj - rjm, 1e-12), 1.0)
+    frac = np.minimum(np.maximum(frac, 0.0), 1.0)
+    gx = win.x[jm] + frac * (win.x[j] - win.x[jm])
+    gy = win.y[jm] + frac * (win.y[j] - win.y[jm])
+    los = np.arctan2(gy - y, gx - x)
+    eta = np.mod(los - course_rad + math.pi, 2.0 * math.pi) - math.pi
+    dist = np.maximum(np.hypot(gx - x, gy - y), 1e-6)
+    a = 2.0 * v * v * np.sin(eta) / dist
+    if a_max_m_s2 < math.inf:
+        a = np.minimum(np.maximum(a, -a_max_m_s2), a_max_m_s2)
+    return a, l_eff, gx, gy, d
+
+
+class PredictiveGuidance:
+    """The predictive law on a :class:`~companion.geometry.paths.Path`; see the module docstring.
+
+    Same interface as the other laws: ``step(t_s, VehicleState) -> GuidanceOutput``.
+    """
+
+    method = "predictive"
+
+    def __init__(self, path, params: PredictiveParams | None = None):
+        self.path = path
+        self.params = params if params is not None else PredictiveParams()
+        p = self.params
+        self._candidates = p.candidates_m()
+        self._steps = max(1, int(round(p.horizon_s / p.rollout_dt_s)))
+        self._segment_s = p.horizon_s / p.plan_segments
+        # rollout step k -> plan segment
+        self._seg_of_step = np.minimum(
+            (np.arange(self._steps) * p.rollout_dt_s / self._segment_s).astype(int), p.plan_segments - 1)
+        self._s_hint: float | None = None
+        self._look_m = float(self._candidates[len(self._candidates) // 2])
+        self._plan = np.zeros(p.plan_segments)  # acceleration corrections, one per segment
+        self._plan_t0 = 0.0
+        self._a_hat = 0.0  # lateral acceleration the vehicle is flying, per the lag model
+        self._last_cmd = 0.0
+        self._last_t: float | None = None
+        self._next_reopt_t = -math.inf
+        self._win: _Window | None = None
+        self.reoptimisations = 0
+
+    # -- the vehicle model the law believes ---------------------------------------------------
+    def _alpha(self, dt_s: float) -> float:
+        tau = self.params.lag_s
+        return 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt_s / tau)
+
+    def _air(self, state: VehicleState) -> tuple[float, float]:
+        """Air heading and airspeed from the ground velocity and the known wind."""
+        p = self.params
+        gx = state.speed_m_s * math.cos(state.course_rad) - p.wind_x_m_s
+        gy = state.speed_m_s * math.sin(state.course_rad) - p.wind_y_m_s
+        return math.atan2(gy, gx), max(math.hypot(gx, gy), MIN_SPEED_M_S)
+
+    def rollout(self, state: VehicleState, look_m: np.ndarray, plans: np.ndarray) -> np.ndarray:
+        """Batched closed-loop rollouts; returns the residuals ``(K, 2 * steps)``.
+
+        Row k flies pursuit with look-ahead ``look_m[k]`` plus the piecewise-constant correction
+        ``plans[k]`` through the lag and the limit. The cost of a row is the sum of its squared
+        residuals: ``sum (d^2 + lambda u^2) dt``.
+        """
+        p = self.params
+        win = self._win
+        k = look_m.size
+        heading, v_air = self._air(state)
+        h = np.full(k, heading)
+        x = np.full(k, state.x_m)
+        y = np.full(k, state.y_m)
+        a_act = np.full(k, self._a_hat)
+        dt = p.rollout_dt_s
+        alpha = self._alpha(dt)
+        wx, wy = p.wind_x_m_s, p.wind_y_m_s
+        sq_dt = math.sqrt(dt)
+        sq_lam_dt = math.sqrt(p.lambda_s4 * dt)
+        res = np.empty((k, 2 * self._steps))
+        for n in range(self._steps):
+            gx = v_air * np.cos(h) + wx
+            gy = v_air * np.sin(h) + wy
+            u, _, _, _, d = pursuit_command(win, x, y, np.arctan2(gy, gx), np.hypot(gx, gy), look_m, math.inf)
+            u = np.minimum(np.maximum(u + plans[:, self._seg_of_step[n]], -p.a_max_m_s2), p.a_max_m_s2)
+            res[:, 2 * n] = d * sq_dt
+            res[:, 2 * n + 1] = u * sq_lam_dt
+            a_act += (u - a_act) * alpha
+            dh = a_act / v_air * dt
+            mid = h + 0.5 * dh
+            x = x + (v_air * np.cos(mid) + wx) * dt
+            y = y + (v_air * np.sin(mid) + wy) * dt
+            h = h + dh
+        return res
+
+    def _shifted_plan(self, t_s: float) -> np.ndarray:
+        """The previous plan re-read from ``t_s`` on (segments past its horizon decay to zero)."""
+        p = self.params
+        mids = t_s - self._plan_t0 + (np.arange(p.plan_segments) + 0.5) * self._segment_s
+        idx = np.floor(mids / self._segment_s).astype(int)
+        out = np.where(idx < p.plan_segments, self._plan[np.minimum(idx, p.plan_segments - 1)], 0.0)
+        return out
+
+    def reoptimise(self, t_s: float, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> float:
+        """Choose the look-ahead distance and refine the correction plan; returns the plan's cost.
+
+        1. One batched rollout holds every candidate look-ahead distance flown with the previous
+           plan (shifted to now), and the same plan perturbed segment by segment (forward
+           differences) at the previous look-ahead distance. The cheapest candidate is kept.
+        2. Gauss-Newton on the plan: the perturbed rows give the Jacobian of the residuals, the
+           damped normal equations a step, and a second batched rollout tries the full, half and
+           quarter step with the chosen look-ahead; a step is kept only if it lowers the cost.
+           ``refine_iterations`` > 1 repeats step 2 around the new plan.
+        """
+        p = self.params
+        v_g = max(state.speed_m_s, MIN_SPEED_M_S)
+        reach = v_g * (p.horizon_s + p.reopt_period_s) * 1.3 + 1.5 * max(p.l_max_m, SQRT2 * abs(crosstrack_m)) + 5.0
+        self._win = _Window(self.path, s_proj_m, reach)
+        plan = self._shifted_plan(t_s)
+        look = self._candidates
+        k = look.size
+        m = plan.size
+        eps = FD_STEP_M_S2
+        refine = p.refine_iterations > 0
+        rows_look = np.concatenate([look, np.full(m, self._look_m)]) if refine else look
+        plans = np.tile(plan, (rows_look.size, 1))
+        if refine:
+            plans[k:] += eps * np.eye(m)
+        res = self.rollout(state, rows_look, plans)
+        costs = np.einsum("ij,ij->i", res[:k], res[:k])
+        best = int(np.argmin(costs))
+        previous = int(np.argmin(np.abs(look - self._look_m)))
+        self._look_m = float(look[best])
+        cost = float(costs[best])
+        if refine:
+            r0 = res[previous]
+            jac = (res[k:] - r0).T / eps
+            for iteration in range(p.refine_iterations):
+                jtj = jac.T @ jac
+                damping = 1e-6 + 1e-3 * np.trace(jtj) / m
+                step = np.linalg.solve(jtj + damping * np.eye(m), -jac.T @ r0)
+                trial = plan + np.outer(LINE_SEARCH, step)
+                rc = self.rollout(state, np.full(len(LINE_SEARCH), self._look_m), trial)
+                cc = np.einsum("ij,ij->i", rc, rc)
+                j = int(np.argmin(cc))
+                if cc[j] >= cost:
+                    break
+                plan, cost = trial[j], float(cc[j])
+                if iteration + 1 < p.refine_iterations:
+                    pert = np.tile(plan, (m + 1, 1))
+                    pert[1:] += eps * np.eye(m)
+                    r = self.rollout(state, np.full(m + 1, self._look_m), pert)
+                    r0 = r[0]
+                    jac = (r[1:] - r0).T / eps
+        self._plan = plan
+        self._plan_t0 = t_s
+        self.reoptimisations += 1
+        return cost
+
+    def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
+        p = self.params
+        if self._last_t is not None:  # advance the lag model over the last tick with the last command
+            self._a_hat += (self._last_cmd - self._a_hat) * self._alpha(max(t_s - self._last_t, 0.0))
+        self._last_t = t_s
+        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
+        self._s_hint = f.s_m
+        reoptimised = False
+        if t_s >= self._next_reopt_t or self._win is None:
+            self.reoptimise(t_s, state, f.s_m, f.crosstrack_m)
+            self._next_reopt_t = t_s + p.reopt_period_s - 1e-9
+            reoptimised = True
+        a, l_eff, gx, gy, _ = pursuit_command(
+            self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
+            np.array([state.speed_m_s]), np.array([self._look_m]), math.inf)
+        seg = min(int((t_s - self._plan_t0) / self._segment_s), p.plan_segments - 1)
+        correction = float(self._plan[seg])
+        a_cmd = min(max(float(a[0]) + correction, -p.a_max_m_s2), p.a_max_m_s2)
+        self._last_cmd = a_cmd
+        phase = "finished" if is_finished(self.path, f.s_m) else "close_range"
+        return GuidanceOutput(
+            a_cmd_m_s2=a_cmd,
+            phase=phase,
+            crosstrack_m=f.crosstrack_m,
+            s_proj_m=f.s_m,
+            lookahead_xy_m=(float(gx[0]), float(gy[0])),
+            reoptimised=reoptimised,
+            extra={"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat},
+        )
