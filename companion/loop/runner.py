@@ -420,6 +420,7 @@ class FlightRunner:
         self._scheduler = sched
         target_mode = "offboard" if self.link.info.autopilot == "px4" else "guided"
         t_first: float | None = None
+        prev_course_cmd = None
         prev_course = self.mission.path.start_heading_rad
         p = self.link.state.position
         if p is not None and math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) >= config.min_course_speed_m_s:
@@ -455,8 +456,10 @@ class FlightRunner:
                 if self.opt.clock == "autopilot":
                     age = max(age, now - sample.time_s)
             result = compute_tick(guidance, tick.count, t_s, sample, age, config,
-                                  yaw_ned_rad=self.link.state.yaw_ned_rad, prev_course_rad=prev_course)
+                                  yaw_ned_rad=self.link.state.yaw_ned_rad, prev_course_rad=prev_course,
+                                  prev_course_cmd_rad=prev_course_cmd)
             prev_course = result.course_rad
+            prev_course_cmd = result.course_cmd_rad
             self._send(result.setpoint)
             time_usec = sample.time_boot_ms * 1000 if sample is not None else 0
             self.link.record_debug("guidance", tick.count, time_usec, result.debug)

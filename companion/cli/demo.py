@@ -1,0 +1,242 @@
+"""``companion demo``: fly ``missions/paper_far_start.yaml`` on the mock autopilot, end to end.
+
+Starts ``sitl_mock`` as a subprocess (``python -m sitl_mock``) on a free local UDP port, flies the
+mission over MAVLink faster than real time (the loop ticks on the autopilot's clock), then prints
+the metrics table, the loop statistics, the tlog path and writes a PNG plot.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from companion.cli.fly import add_flight_options, format_loop_line, format_metrics_table, json_safe, options_from_args
+from companion.errors import CompanionError, LinkError
+
+DEFAULT_MISSION = "missions/paper_far_start.yaml"
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("demo", help="fly the paper's far-start mission on the mock autopilot",
+                              description="Start the mock autopilot, fly a mission end to end over UDP "
+                                          "faster than real time, print metrics, write a tlog and a plot.")
+    p.add_argument("--mission", default=None, help=f"mission file (default {DEFAULT_MISSION})")
+    p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4",
+                   help="personality of the mock autopilot (default px4)")
+    p.add_argument("--vehicle", choices=("copter", "rover", "plane"), default="copter")
+    p.add_argument("--speedup", type=float, default=4.0, help="simulated time per wall second (default 4)")
+    p.add_argument("--tau-vel-s", type=float, default=0.3, help="mock velocity-loop time constant (default 0.3)")
+    p.add_argument("--a-max-m-s2", type=float, default=10.0, help="mock acceleration limit (default 10)")
+    p.add_argument("--plot", default=None, help="PNG path (default: beside the tlog)")
+    p.add_argument("--no-plot", action="store_true", help="do not write the PNG")
+    p.add_argument("--seed", type=int, default=1)
+    add_flight_options(p, connect_required=False)
+    # The demo ticks on the autopilot's clock unless told otherwise (parser defaults win).
+    p.set_defaults(func=run, clock="autopilot")
+
+
+def free_udp_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def find_mission(path: str | None) -> Path:
+    """The mission file: as given, else ``missions/paper_far_start.yaml`` here or in the source tree."""
+    if path:
+        return Path(path)
+    here = Path(DEFAULT_MISSION)
+    if here.exists():
+        return here
+    tree = Path(__file__).resolve().parents[2] / DEFAULT_MISSION
+    return tree if tree.exists() else here
+
+
+class MockProcess:
+    """``python -m sitl_mock ...`` as a child process; ``ready`` when it prints ``sitl_mock ready``."""
+
+    def __init__(self, args: list[str]):
+        self.cmd = [sys.executable, "-m", "sitl_mock", *args]
+        self.proc: subprocess.Popen | None = None
+        self.lines: list[str] = []
+        self._ready = threading.Event()
+
+    def start(self, timeout_s: float = 30.0) -> None:
+        env = dict(os.environ)
+        src_root = str(Path(__file__).resolve().parents[2])
+        env["PYTHONPATH"] = src_root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        try:
+            self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                         text=True, env=env)
+        except OSError as err:
+            raise LinkError(f"cannot start the mock autopilot ({err})") from err
+        threading.Thread(target=self._read, daemon=True).start()
+        end = time.monotonic() + timeout_s
+        while not self._ready.wait(0.05):
+            if self.proc.poll() is not None or time.monotonic() > end:
+                tail = " | ".join(self.lines[-5:]) or "no output"
+                self.stop()
+                raise LinkError(f"the mock autopilot did not start ({' '.join(self.cmd[1:])}): {tail}")
+
+    def _read(self) -> None:
+        assert self.proc is not None and self.proc.stdout is not None
+        for line in self.proc.stdout:
+            line = line.rstrip("\n")
+            self.lines.append(line)
+            del self.lines[:-200]
+            if line.startswith("sitl_mock ready"):
+                self._ready.set()
+
+    def stop(self) -> None:
+        if self.proc is None or self.proc.poll() is not None:
+            return
+        self.proc.terminate()
+        try:
+            self.proc.wait(5.0)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(5.0)
+
+
+def mock_args(mission, args, port: int) -> list[str]:
+    from companion.geometry import frames
+
+    if mission.start is not None:
+        x, y, heading = mission.start.x_m, mission.start.y_m, mission.start.heading_rad
+    else:
+        (x, y), heading = mission.path.start_xy_m, mission.path.start_heading_rad
+    yaw_deg = math.degrees(frames.yaw_ned_from_enu(heading))
+    out = [
+        "--autopilot", args.autopilot, "--vehicle", args.vehicle,
+        "--link", f"udpout:127.0.0.1:{port}",
+        "--speedup", f"{args.speedup:g}",
+        f"--start-ned={y:.3f},{x:.3f}", "--start-alt-m", f"{mission.altitude_m:g}",
+        f"--start-yaw-deg={yaw_deg:.3f}", "--start-airborne",
+        "--tau-vel-s", f"{args.tau_vel_s:g}", "--a-max-m-s2", f"{args.a_max_m_s2:g}",
+        "--seed", str(args.seed), "--quiet",
+        # Keep the real autopilots' wall-clock margins: a pause of w wall seconds in the companion
+        # is w * speedup simulated seconds to the mock (PX4 COM_OF_LOSS_T 1 s, ArduPilot 3 s).
+        "--offboard-loss-s", f"{1.0 * max(1.0, args.speedup):g}",
+        "--guided-timeout-s", f"{3.0 * max(1.0, args.speedup):g}",
+    ]
+    if args.signing_key_file:
+        out += ["--signing-key-file", args.signing_key_file]
+    return out
+
+
+def write_plot(path: Path, mission, record, title: str) -> Path:
+    """Path vs track, cross-track error and a_cmd over time, phases shaded."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    t = np.asarray(record.t_s)
+    x = np.asarray(record.x_m)
+    y = np.asarray(record.y_m)
+    d = np.asarray(record.crosstrack_m)
+    a = np.asarray(record.a_cmd_m_s2)
+    phases = list(record.phase)
+    colours = {"midcourse": "#fde2b8", "close_range": "#d4ecd4", "finished": "#dddddd", "hold": "#f6c6c6"}
+    fig = plt.figure(figsize=(11, 7))
+    ax_xy = fig.add_subplot(1, 2, 1)
+    _, px, py = mission.path.sample(800)
+    ax_xy.plot(px, py, "k--", lw=1, label="path")
+    ax_xy.plot(x, y, "b-", lw=1.5, label="flown track")
+    if x.size:
+        ax_xy.plot(x[0], y[0], "go", label="start")
+    ax_xy.set_xlabel("x east [m]")
+    ax_xy.set_ylabel("y north [m]")
+    ax_xy.set_aspect("equal", adjustable="datalim")
+    ax_xy.legend(loc="best", fontsize=8)
+    ax_xy.set_title(title, fontsize=10)
+    ax_d = fig.add_subplot(2, 2, 2)
+    ax_a = fig.add_subplot(2, 2, 4, sharex=ax_d)
+    for ax in (ax_d, ax_a):
+        start = 0
+        for i in range(1, len(phases) + 1):
+            if i == len(phases) or phases[i] != phases[start]:
+                if t.size:
+                    ax.axvspan(t[start], t[min(i, len(t) - 1)], color=colours.get(phases[start], "#eeeeee"),
+                               lw=0, label=phases[start] if ax is ax_d else None)
+                start = i
+    ax_d.plot(t, d, "b-", lw=1)
+    ax_d.set_ylabel("cross-track [m]")
+    handles, labels = ax_d.get_legend_handles_labels()
+    uniq = dict(zip(labels, handles))
+    ax_d.legend(uniq.values(), uniq.keys(), loc="best", fontsize=8)
+    ax_a.plot(t, a, "r-", lw=1)
+    ax_a.set_ylabel("a_cmd [m/s^2]")
+    ax_a.set_xlabel("t [s]")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def run(args) -> int:
+    from companion.io.tlog import default_tlog_path
+    from companion.loop.runner import FlightRunner, Status
+    from companion.mission import load_mission
+
+    mission = load_mission(find_mission(args.mission))
+    if not args.tlog:
+        p = default_tlog_path()
+        args.tlog = str(p.with_name(p.name.replace("flight-", "demo-")))
+    if not (math.isfinite(args.speedup) and args.speedup > 0):
+        raise CompanionError(f"--speedup: expected a number > 0, got {args.speedup!r}")
+    port = free_udp_port()
+    expected_s = mission.path.length_m / mission.speed_m_s
+    max_duration = args.max_duration_s if args.max_duration_s is not None else 3.0 * expected_s + 60.0
+    options = options_from_args(args, mission, connect=f"udpin:127.0.0.1:{port}", autopilot=args.autopilot,
+                                max_duration_s=max_duration, heartbeat_timeout_s=20.0)
+    status = Status(quiet=args.quiet)
+    mock = MockProcess(mock_args(mission, args, port))
+    wall0 = time.monotonic()
+    mock.start()
+    status.event(f"mock autopilot started ({args.autopilot} {args.vehicle}, speedup {args.speedup:g}) "
+                 f"on udp port {port}")
+    runner = FlightRunner(mission, options, status)
+    error: CompanionError | None = None
+    try:
+        summary = runner.run()
+    except CompanionError as err:
+        error = err
+        summary = runner.summary
+    finally:
+        mock.stop()
+    wall_s = time.monotonic() - wall0
+    plot_path = None
+    if not args.no_plot and runner.record.t_s:
+        plot_path = Path(args.plot) if args.plot else Path(str(runner.tlog_path) + ".png")
+        title = f"{mission.name}: {args.autopilot} {args.vehicle} mock, x{args.speedup:g}"
+        write_plot(plot_path, mission, runner.record, title)
+    summary = dict(summary)
+    summary["plot"] = str(plot_path) if plot_path else None
+    summary["wall_s"] = wall_s
+    summary["speedup"] = args.speedup
+    if args.json:
+        if error is not None:
+            summary["error"] = str(error)
+        print(json.dumps(json_safe(summary), indent=2))
+    else:
+        print(format_metrics_table(summary))
+        print(format_loop_line(summary))
+        print(f"tlog: {summary.get('tlog')}")
+        if plot_path:
+            print(f"plot: {plot_path}")
+        print(f"wall time: {wall_s:.1f} s")
+    if error is not None:
+        raise error
+    return 0
