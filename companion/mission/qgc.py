@@ -7,7 +7,8 @@ what a mission file can represent and says what it drops:
   cubic spline through them, so every waypoint lies on it). A hold time is dropped with a note.
 - ``NAV_TAKEOFF`` / ``NAV_VTOL_TAKEOFF`` are skipped with a note (guidance starts airborne).
 - A final ``NAV_RETURN_TO_LAUNCH`` / ``NAV_LAND`` / ``NAV_LOITER_UNLIM`` becomes ``on_finish:
-  rtl | land | loiter`` (a land or loiter position becomes the last waypoint).
+  rtl | land | loiter`` (a land or loiter position becomes the last waypoint, flown at the mission
+  altitude; a landing item's own altitude is ignored).
 - ``DO_CHANGE_SPEED`` sets ``speed_m_s`` (all of them must agree).
 - Other non-navigation items (camera, servo, ROI, conditions...) are skipped with a note.
 - Refused, because a single constant-altitude path cannot represent them: ``DO_JUMP`` loops,
@@ -249,7 +250,7 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
                         "a global frame (0 or 3)")
         return None
 
-    def add_position(item: Item) -> None:
+    def add_position(item: Item, use_altitude: bool = True) -> None:
         lat, lon = item.lat_lon
         if not (math.isfinite(lat) and math.isfinite(lon)) or (lat, lon) == (0.0, 0.0):
             problems.append(f"{source}: {item.where}: {item.name} expected a latitude and longitude, "
@@ -258,6 +259,9 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
         if not (-90 <= lat <= 90 and -180 <= lon <= 180):
             problems.append(f"{source}: {item.where}: expected latitude in -90..90 and longitude in "
                             f"-180..180, got {lat:g}, {lon:g}")
+            return
+        if not use_altitude:  # a landing point: flown at the mission altitude, then landed
+            waypoints.append((item, None))
             return
         alt = altitude_of(item)
         if alt is not None:
@@ -282,7 +286,7 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
             finish_item = item
             lat, lon = item.lat_lon
             if cmd != 20 and math.isfinite(lat) and math.isfinite(lon) and (lat, lon) != (0.0, 0.0):
-                add_position(item)
+                add_position(item, use_altitude=(cmd == 17))
         elif cmd in REFUSED_CMDS:
             problems.append(f"{source}: {item.where}: {item.name}: {REFUSED_CMDS[cmd]}")
         elif cmd < 100:
@@ -304,7 +308,7 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
                      f"{on_finish}")
 
     # Altitude: one constant height above home.
-    altitudes = [alt for _, alt in waypoints]
+    altitudes = [alt for _, alt in waypoints if alt is not None]
     if altitude_m is None and altitudes:
         lo, hi = min(altitudes), max(altitudes)
         if hi - lo > ALTITUDE_TOLERANCE_M:

@@ -1,0 +1,107 @@
+"""``companion mission check | show | schema`` through ``companion.cli.main.main``."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from companion.cli.main import main
+
+STRAIGHT = """\
+name: straight
+speed_m_s: 4
+path: {type: waypoints, points_m: [[0, 0], [100, 0]]}
+start: {x_m: -30, y_m: -40, heading_deg: 90}
+"""
+TIGHT = """\
+name: tight
+speed_m_s: 6
+path: {type: parametric, x_of_s: "3*cos(s)", y_of_s: "3*sin(s)", s_range: [0, 2*pi], closed: true}
+guidance: {l1_m: 12}
+"""
+
+
+def write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_check_clean_file_exits_0_with_a_summary(tmp_path, capsys):
+    path = write(tmp_path, "straight.yaml", STRAIGHT)
+    assert main(["mission", "check", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and out.strip() == f"{path}: ok: 'straight', 100.0 m path, V = 4 m/s, L1 = 10 m"
+
+
+def test_check_warns_about_curvature_tighter_than_l1_allows_but_exits_0(tmp_path, capsys):
+    path = write(tmp_path, "tight.yaml", TIGHT)
+    assert main(["mission", "check", str(path)]) == 0
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert len(lines) == 1
+    # Radius 3 m < L1/2 = 6 m; V^2/R = 36/3 = 12 m/s^2 > 2 V^2/L1 = 72/12 = 6 m/s^2.
+    assert lines[0].startswith(f"{path}: path: warning: curvature radius 3 m")
+    assert "needs V^2/R = 12 m/s^2, more than fixed-L1 can command (2 V^2/L1 = 6 m/s^2)" in lines[0]
+    assert "1 warning(s)" in out
+
+
+def test_check_json_lists_problems_and_warnings(tmp_path, capsys):
+    path = write(tmp_path, "bad.yaml", "name: b\nspeed_m_s: 0\npath: {type: waypoints, points_m: [[0, 0], [1, 0]]}\n")
+    assert main(["mission", "check", "--json", str(path)]) == 2
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["ok"] is False and doc["warnings"] == []
+    assert doc["problems"] == [f"{path}: speed_m_s: expected a finite number > 0 and <= 100, got 0"]
+
+
+def test_show_json_gives_hand_checked_figures(tmp_path, capsys):
+    path = write(tmp_path, "straight.yaml", STRAIGHT)
+    assert main(["mission", "show", "--json", str(path)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["length_m"] == pytest.approx(100.0, abs=1e-6)
+    assert doc["start_heading_deg"] == pytest.approx(0.0, abs=1e-6)
+    assert doc["radius_min_m"] is None or doc["radius_min_m"] > 1e6
+    # Start (0, 0) heading east, R = 10 m: circle centres 10 m to the left (north) and right (south).
+    centres = [c["centre_xy_m"] for c in doc["initiation_circles"]]
+    assert centres[0] == pytest.approx([0.0, 10.0], abs=1e-6)
+    assert centres[1] == pytest.approx([0.0, -10.0], abs=1e-6)
+    assert doc["vehicle_start"] == {"x_m": -30.0, "y_m": -40.0, "heading_deg": 90.0}
+
+
+def test_show_plot_writes_a_png(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    path = write(tmp_path, "tight.yaml", TIGHT)
+    png = tmp_path / "out.png"
+    assert main(["mission", "show", str(path), "--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "tightest radius: 3.00 m" in out and f"plot: {png}" in out
+
+
+def test_show_circle_radius_on_the_paper_sine_start(tmp_path, capsys):
+    text = ("name: s\nspeed_m_s: 5\npath: {type: function, y_of_x: \"10*sin(0.078*x) + 20*cos(0.082*x)\","
+            " x_range_m: [-15, 300]}\nmidcourse: {circle_radius_m: 12}\n")
+    assert main(["mission", "show", "--json", str(write(tmp_path, "s.yaml", text))]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    x0 = -15.0
+    y0 = 10 * math.sin(0.078 * x0) + 20 * math.cos(0.082 * x0)
+    h = math.atan(10 * 0.078 * math.cos(0.078 * x0) - 20 * 0.082 * math.sin(0.082 * x0))
+    left = [x0 - 12 * math.sin(h), y0 + 12 * math.cos(h)]
+    assert doc["initiation_circles"][0]["centre_xy_m"] == pytest.approx(left, abs=1e-3)
+
+
+def test_schema_action_prints_the_committed_schema(capsys):
+    assert main(["mission", "schema"]) == 0
+    committed = (Path(__file__).resolve().parents[2] / "companion/mission/mission.schema.json").read_text()
+    assert capsys.readouterr().out == committed
+
+
+def test_import_rejects_a_negative_speed_option(tmp_path, capsys):
+    src = tmp_path / "x.plan"
+    src.write_text("{}")
+    assert main(["mission", "import", str(src), "-o", str(tmp_path / "o.yaml"), "--speed-m-s", "-3"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == "companion: error: --speed-m-s: expected a finite number > 0, got -3.0"
