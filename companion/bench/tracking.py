@@ -222,11 +222,14 @@ def make_law(law: str, setting: float, sc: Scenario, model: ModelSpec):
 # ----------------------------------------------------------------------------- one run
 def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
     """Signed distance to the closest path point along a trajectory (projection kept continuous)."""
+    from companion.guidance.baselines._frame import path_frame
+
     d = np.empty(x_m.size)
     s = None
     for i in range(x_m.size):
-        s = path.project(float(x_m[i]), float(y_m[i]), s)
-        d[i] = path.crosstrack_m(float(x_m[i]), float(y_m[i]), s)
+        f = path_frame(path, float(x_m[i]), float(y_m[i]), s)
+        s = f.s_m
+        d[i] = f.crosstrack_m
     return d
 
 

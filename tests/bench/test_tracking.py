@@ -1,0 +1,72 @@
+"""``companion bench tracking``: the front arithmetic by hand, and the CI form end to end."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bench_scenes import LinePath
+from companion.bench.tracking import front_at, pareto_front, summarise, true_crosstrack_m
+from companion.cli.main import main
+
+
+def test_pareto_front_drops_dominated_points_and_sorts_by_acceleration():
+    pts = [(1.0, 0.5), (0.8, 0.9), (1.2, 0.2), (1.1, 0.6), (0.9, 0.95), (1.3, 0.25), (float("nan"), 0.1)]
+    # (1.1, 0.6) is beaten by (1.0, 0.5); (0.9, 0.95) by (0.8, 0.9); (1.3, 0.25) by (1.2, 0.2).
+    assert pareto_front(pts) == [(0.8, 0.9), (1.0, 0.5), (1.2, 0.2)]
+
+
+def test_front_is_interpolated_between_points_and_flat_beyond_the_last():
+    front = [(1.0, 0.6), (2.0, 0.2)]
+    assert front_at(front, 1.5) == pytest.approx(0.4)
+    assert front_at(front, 3.0) == pytest.approx(0.2)
+    assert front_at(front, 0.5) is None
+
+
+def test_summary_names_the_law_with_the_lowest_front_at_our_acceleration():
+    rows = []
+    for law, pts in {"predictive": [(0.03, 1.5, 0.30), (0.3, 1.0, 0.8)],
+                     "npfg": [(3.0, 1.4, 0.50), (6.0, 1.6, 0.2)],
+                     "pure_pursuit": [(4.0, 1.5, 0.35)]}.items():
+        for setting, a, d in pts:
+            rows.append({"scenario": "s", "model": "lag", "law": law, "setting": setting,
+                         "a_rms_m_s2": a, "d_rms_m": d})
+    (s,) = summarise(rows, default_lambda=0.03)
+    assert s["a_rms_ref_m_s2"] == 1.5
+    # npfg's front at a = 1.5: halfway between (1.4, 0.5) and (1.6, 0.2) -> 0.35.
+    assert s["d_rms_by_law"]["npfg"] == pytest.approx(0.35)
+    assert s["best_law"] == "predictive" and s["best_d_rms_m"] == pytest.approx(0.30)
+    assert s["margin_m"] == pytest.approx(0.05)
+    # npfg's (1.6, 0.2) lies below predictive's front there (0.30): reported honestly.
+    assert [(b["law"], b["a_rms_m_s2"]) for b in s["predictive_beaten_at"]] == [("npfg", 1.6)]
+
+
+def test_crosstrack_is_measured_from_the_trajectory_with_sign():
+    x = np.array([0.0, 10.0, 20.0])
+    y = np.array([3.0, -2.0, 0.5])
+    assert np.allclose(true_crosstrack_m(LinePath(x0=-10.0), x, y), [3.0, -2.0, 0.5])
+
+
+def test_quick_bench_runs_every_law_in_both_models(capsys):
+    assert main(["bench", "tracking", "--quick", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    rows = doc["rows"]
+    laws = ("fixed_l1", "corrector", "ap_l1", "npfg", "pure_pursuit", "predictive")
+    assert {(r["model"], r["law"]) for r in rows} == {(m, law) for m in ("ideal", "lag") for law in laws}
+    assert len(rows) == 2 * len(laws) * 2
+    for r in rows:
+        for key in ("d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "reach_s"):
+            assert r[key] is not None and math.isfinite(r[key]), (r, key)
+        assert r["d_rms_m"] <= r["d_max_m"] and r["a_rms_m_s2"] <= r["a_max_m_s2"] + 1e-12
+        if r["model"] == "lag" and r["law"] == "predictive":
+            assert r["a_max_m_s2"] <= 5.0 + 1e-9  # commands within the vehicle's limit
+    assert {s["model"] for s in doc["summary"]} == {"ideal", "lag"}
+
+
+def test_unknown_scenario_is_a_one_line_error(capsys):
+    assert main(["bench", "tracking", "--scenario", "moon"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown 'moon'" in err and "Traceback" not in err
