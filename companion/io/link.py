@@ -33,6 +33,7 @@ import math
 import os
 import select
 import socket
+import struct
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -335,6 +336,9 @@ class MavLink:
             self._mav.signing.allow_unsigned_callback = None
             self._mav.signing.link_id = 0
             self._mav.signing.timestamp = signing_timestamp_now()
+            # pymavlink records a stream's timestamp before checking the signature, so one forged
+            # packet with a future timestamp would lock out the real autopilot; check it first.
+            self._mav.check_signature = self._check_signature
         self.info: AutopilotInfo | None = None
         self.state = LinkState()
         self.rejected = {reason: 0 for reason in REJECT_REASONS}
@@ -384,6 +388,8 @@ class MavLink:
         for msg in msgs:
             try:
                 accepted += self._handle_message(msg, addr)
+            except LinkError:
+                raise
             except Exception:  # noqa: BLE001 - a malformed field value must not stop the loop
                 self.rejected["bad_data"] += 1
         return accepted
@@ -504,6 +510,26 @@ class MavLink:
         t = time_boot_ms / 1000.0
         if not (t <= self.state.autopilot_time_s):  # also when still NaN
             self.state.autopilot_time_s = t
+
+    def _check_signature(self, msgbuf, src_system: int, src_component: int) -> bool:
+        """MAVLink 2 signature check: signature first, then a strictly increasing timestamp."""
+        signing = self._mav.signing
+        h = hashlib.sha256()
+        h.update(signing.secret_key)
+        h.update(bytes(msgbuf[:-6]))
+        if h.digest()[:6] != bytes(msgbuf[-6:]):
+            return False
+        tlow, thigh = struct.unpack("<IH", bytes(msgbuf[-12:-6]))
+        timestamp = tlow + (thigh << 32)
+        key = (msgbuf[-13], src_system, src_component)
+        last = signing.stream_timestamps.get(key)
+        if last is not None and timestamp <= last:
+            return False  # replayed or reordered
+        if last is None and timestamp + 6_000_000 < signing.timestamp:
+            return False  # a new stream more than a minute in the past
+        signing.stream_timestamps[key] = timestamp
+        signing.timestamp = max(signing.timestamp, timestamp)
+        return True
 
     # ---------------------------------------------------------------- pairing, heartbeat
 
