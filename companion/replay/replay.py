@@ -205,7 +205,9 @@ def replay_flight(
     phase_logged: list[str] = []
     phase_replayed: list[str] = []
     first_divergence = None
-    prev_course = 0.0
+    # The state the live runner carries from tick to tick (see FlightRunner._loop).
+    prev_course = path.start_heading_rad
+    prev_course_cmd = None
     s_hint = None
 
     with ByteProgress(n, "replaying", enabled=progress) as bar:
@@ -213,8 +215,10 @@ def replay_flight(
             if i % 1024 == 0:
                 bar.update_to(i)
             res = compute_tick(guidance, tk.tick, tk.t_s, tk.sample, tk.sample_age_s, config,
-                               yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course)
+                               yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course,
+                               prev_course_cmd_rad=prev_course_cmd)
             prev_course = res.course_rad
+            prev_course_cmd = res.course_cmd_rad
             sp = res.setpoint
             out = res.output
             cols["t_s"][i] = tk.t_s

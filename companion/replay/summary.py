@@ -11,7 +11,9 @@ Conventions
 - Times (``time_s``, ``start_s``) are seconds since the first record of the log;
   ``start_unix_s`` gives the absolute time of that first record.
 - A message's ``rate_hz`` is ``(count - 1) / (last - first)`` over the span in which that sender
-  sent that message (so a 50 Hz stream that ran for half the log still reads 50 Hz).
+  sent that message (so a 50 Hz stream that ran for half the log still reads 50 Hz); when that
+  span is shorter than :data:`MIN_RATE_SPAN_S` (a burst of parameters, a single command) it is
+  ``count / duration`` of the whole log instead.
 - Modes come from heartbeats of flight controllers (``autopilot`` other than
   MAV_AUTOPILOT_INVALID); an entry is recorded whenever the mode or the armed state changes.
 - A link gap is an interval longer than :data:`GAP_THRESHOLD_S` between two consecutive records
@@ -41,6 +43,7 @@ from companion.io.logread import (
 from companion.replay.progress import ByteProgress
 
 GAP_THRESHOLD_S = 0.5
+MIN_RATE_SPAN_S = 1.0
 PROGRESS_EVERY_RECORDS = 4096
 
 
@@ -130,8 +133,12 @@ def summarise_log(
                                   "duration_s": float(intervals[i])})
 
     messages = []
+    log_span = last_time - first_time
     for (system, component, name), (count, first, last) in sorted(span_by_message.items()):
-        rate = (count - 1) / (last - first) if count > 1 and last > first else 0.0
+        if last - first >= MIN_RATE_SPAN_S:
+            rate = (count - 1) / (last - first)
+        else:
+            rate = count / log_span if log_span > 0 else 0.0
         messages.append({"system": system, "component": component, "type": name,
                          "count": count, "rate_hz": float(rate)})
 

@@ -8,10 +8,9 @@ records what the loop records: the autopilot's ``LOCAL_POSITION_NED`` (and ``ATT
 guidance built by :func:`companion.loop.runner.make_guidance`, as in flight. The samples handed to
 the guidance are rounded to float32 first, as they would be after crossing the wire.
 
-The vehicle: its horizontal velocity becomes the commanded velocity at the next tick (optionally
-through a first-order lag ``vehicle_lag_s``), altitude is held, one ``LOCAL_POSITION_NED`` per
-tick. (The velocity setpoint points along the course one tick ahead, so a lagging vehicle turns
-at only about ``dt / lag`` of the commanded rate; the default is no lag.) The tick time carries a
+The vehicle: its horizontal velocity follows the commanded velocity through a first-order lag
+``vehicle_lag_s`` (0: it takes the commanded velocity at the next tick), altitude is held, one
+``LOCAL_POSITION_NED`` per tick. The tick time carries a
 small deterministic jitter (as a wall clock would), so ``t_s`` is not on the tick grid.
 
 :func:`replay_throughput` times the replay of such a flight (default: one hour at 50 Hz on a
@@ -79,7 +78,7 @@ def write_synthetic_flight(
     duration_s: float = 60.0,
     rate_hz: float = 50.0,
     start_offset_m: tuple[float, float] = (0.0, 3.0),
-    vehicle_lag_s: float = 0.0,
+    vehicle_lag_s: float = 0.2,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -114,6 +113,7 @@ def write_synthetic_flight(
     ve, vn = mission.speed_m_s * math.cos(heading), mission.speed_m_s * math.sin(heading)
     alt = mission.altitude_m
     prev_course = heading
+    prev_course_cmd = None
     n_ticks = int(round(duration_s * rate_hz))
     alpha = 1.0 - math.exp(-dt / vehicle_lag_s) if vehicle_lag_s > 0 else 1.0
 
@@ -137,8 +137,10 @@ def write_synthetic_flight(
             sample = PositionSample(boot_ms, *fields)
             t_s = t_grid + TICK_JITTER_S * math.sin(0.7 * k)
             res = compute_tick(guidance, k, t_s, sample, SAMPLE_AGE_S, config,
-                               yaw_ned_rad=yaw_seen, prev_course_rad=prev_course)
+                               yaw_ned_rad=yaw_seen, prev_course_rad=prev_course,
+                               prev_course_cmd_rad=prev_course_cmd)
             prev_course = res.course_rad
+            prev_course_cmd = res.course_cmd_rad
             sp = res.setpoint
             tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
                                                           sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
