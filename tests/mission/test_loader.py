@@ -44,9 +44,29 @@ def test_paper_sine_loads_with_its_start_and_guidance():
     assert m.path.start_heading_rad == pytest.approx(math.atan(df), abs=1e-6)
 
 
-@pytest.mark.skipif(not SHARED_SINE.exists(), reason="shared SITL data not present on this machine")
-def test_shared_sitl_parametric_mission_loads():
-    m = load_mission(SHARED_SINE)
+# A copy of /work/shared/data/ardupilot-copter-sitl-sine.yaml, so the check runs on any machine.
+SITL_SINE = """\
+name: ardupilot-copter-sitl-sine
+frame: local_enu
+speed_m_s: 4.0
+altitude_m: 10.0
+path:
+  type: parametric
+  x_of_s: "8*sin(0.08*s)"
+  y_of_s: "s"
+  s_range: [0, 110]
+guidance: {l1_m: 10.0, method: fixed_l1, rate_hz: 50}
+"""
+
+
+@pytest.mark.parametrize("source", ["inline", "shared"])
+def test_shared_sitl_parametric_mission_loads(source):
+    if source == "shared":
+        if not SHARED_SINE.exists():
+            pytest.skip("shared SITL data not on this machine (the inline copy is checked)")
+        m = load_mission(SHARED_SINE)
+    else:
+        m = parse_mission(SITL_SINE, "sitl.yaml")
     assert m.guidance.method == "fixed_l1" and m.speed_m_s == 4.0 and m.altitude_m == 10.0
     # x = 8 sin(0.08 y), y in [0, 110]: starts at the origin heading atan2(1, 0.64).
     assert m.path.start_xy_m == pytest.approx((0.0, 0.0), abs=1e-9)
