@@ -55,6 +55,8 @@ class Client:
         self.port = port
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=source_system,
                                                source_component=source_component, dialect="ardupilotmega")
+        # Speak MAVLink 2 from the start (pymavlink would switch on the first frame and drop signing set-up).
+        self.conn.auto_mavlink_version(b"\xfd")
 
     @property
     def mav(self):
