@@ -19,7 +19,8 @@ parsed on its own (no bytes carried over to the next datagram). Rejections are c
 in :attr:`MavLink.rejected`: ``bad_crc``, ``bad_data`` (bad prefix, wrong length, truncated),
 ``unknown`` (message id not in the dialect), ``wrong_system`` (not the paired system/component),
 ``wrong_address`` (UDP datagram not from the pinned peer), ``unsigned`` and ``bad_signature``
-(signing on), ``nan`` and ``out_of_range`` (state fields).
+(signing on), ``nan`` and ``out_of_range`` (state fields), ``old_sample`` (a LOCAL_POSITION_NED
+not newer than the one held: reordered, duplicated or replayed).
 
 Signing (MAVLink 2): ``signing_key`` is 32 bytes (:func:`load_signing_key` reads a file with 64
 hex characters, or any other text as a passphrase hashed with SHA-256). When set, every outgoing
@@ -68,7 +69,7 @@ MAV_RESULT_NAMES = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "U
                     4: "FAILED", 5: "IN_PROGRESS", 6: "CANCELLED"}
 
 REJECT_REASONS = ("bad_crc", "bad_data", "unknown", "wrong_system", "wrong_address", "unsigned",
-                  "bad_signature", "nan", "out_of_range")
+                  "bad_signature", "nan", "out_of_range", "old_sample")
 
 COPTER_TYPES = {2, 3, 4, 13, 14, 15, 29}  # quad, coaxial, heli, hexa, octo, tri, dodeca
 PLANE_TYPES = {1, 16, 19, 20, 21, 22, 23, 24, 25}  # fixed wing and VTOL variants
@@ -476,6 +477,14 @@ class MavLink:
             problem = position_problem(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
             if problem:
                 self.rejected[problem] += 1
+                return False
+            prev = st.position
+            if (prev is not None and msg.time_boot_ms <= prev.time_boot_ms
+                    and now - prev.received_s < self.repin_after_s):
+                # Not newer than the sample held (a reordered, duplicated or replayed datagram):
+                # using it would steer on old data that looks fresh. After a silence of
+                # repin_after_s an earlier time is accepted again (the autopilot restarted).
+                self.rejected["old_sample"] += 1
                 return False
             st.position = PositionSample(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy,
                                          msg.vz, received_s=now)
