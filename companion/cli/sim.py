@@ -25,7 +25,7 @@ def register(subparsers) -> None:
     parser.add_argument("mission", help="mission YAML file")
     parser.add_argument("--method", choices=METHODS, help="override the mission's guidance method")
     parser.add_argument("--heading-deg", type=float, help="initial heading, degrees anticlockwise from east")
-    parser.add_argument("--start", type=_parse_xy, metavar="X,Y", help="initial position, local ENU metres")
+    parser.add_argument("--start", type=_parse_xy, metavar="X,Y", help="initial position, local ENU metres (write --start=-15,0 when X is negative)")
     parser.add_argument("--t-max-s", type=float, help="time limit of the simulation")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", metavar="OUT.png", help="save a plot of the path, track, error and command")
