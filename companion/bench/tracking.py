@@ -53,6 +53,7 @@ SPEED_M_S = 5.0
 RATE_HZ = 50.0
 LAG_TAU_S = 0.3
 LAG_A_MAX_M_S2 = 5.0
+SINE_X_END_M = 150.0  # the paper sine from x = -15 m to here (248 m of path)
 PAPER_HEADINGS_DEG = tuple(-20.882 + 15.0 * k for k in range(11))
 MISSIONS_DIR = FilePath(__file__).resolve().parents[2] / "missions"
 
@@ -98,7 +99,7 @@ class Scenario:
 def _paper_sine():
     from companion.geometry.paths import function_path
 
-    return function_path(lambda x: 10.0 * np.sin(0.078 * x) + 20.0 * np.cos(0.082 * x), (-15.0, 300.0))
+    return function_path(lambda x: 10.0 * np.sin(0.078 * x) + 20.0 * np.cos(0.082 * x), (-15.0, SINE_X_END_M))
 
 
 def _s_turn():

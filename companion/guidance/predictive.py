@@ -43,7 +43,7 @@ from companion.guidance.baselines._frame import is_finished, path_frame
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)
-WINDOW_SPACING_M = 0.5  # spacing of the local path samples the rollouts project onto
+WINDOW_SPACING_M = 1.0  # spacing of the local path samples the rollouts project onto
 MIN_SPEED_M_S = 0.1
 FD_STEP_M_S2 = 0.05  # finite-difference step of the plan Jacobian
 LINE_SEARCH = np.array([1.0, 0.5, 0.25])  # step fractions tried (in one batch) after a Gauss-Newton step
