@@ -380,4 +380,7 @@ def replay_log(
                            progress=progress)
     result.timing_s["read_s"] = read_s
     result.timing_s["total_s"] = time.perf_counter() - started
+    if result.steps_compared == 0:
+        raise LogError(f"{tlog}: none of the {len(flight.ticks)} ticks has a logged velocity setpoint "
+                       "to compare with (SET_ATTITUDE_TARGET flights are not compared)")
     return result
