@@ -126,7 +126,8 @@ def format_loop_line(summary: dict) -> str:
         return fmt.format(v) if isinstance(v, (int, float)) and math.isfinite(v) else "n/a"
     return (f"loop: {num(summary.get('rate_hz_achieved'), '{:.1f}')} Hz achieved, tick "
             f"p50 {num(tick.get('p50'), '{:.2f}')} ms p99 {num(tick.get('p99'), '{:.2f}')} ms, "
-            f"{summary.get('ticks', 0)} ticks ({summary.get('hold_ticks', 0)} hold), "
+            f"{summary.get('ticks', 0)} guidance ticks ({summary.get('hold_ticks', 0)} hold, "
+            f"{summary.get('coast_ticks', 0)} coasted), "
             f"{summary.get('setpoints_sent', 0)} setpoints sent; rejected packets: {rej_text}")
 
 

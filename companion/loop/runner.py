@@ -20,6 +20,7 @@ Clocks: ``wall`` ticks on the monotonic clock; ``autopilot`` ticks on the autopi
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import math
 import signal
@@ -42,7 +43,7 @@ from companion.io.link import (
 )
 from companion.io.tlog import TlogWriter, default_tlog_path
 from companion.loop.scheduler import FixedRateScheduler, MonotonicClock
-from companion.loop.tick import TickConfig, compute_tick
+from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
 from companion.sim.metrics import tracking_metrics
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
@@ -222,6 +223,13 @@ class FlightRunner:
         self._scheduler: FixedRateScheduler | None = None
         self._in_hold = False
         self._mode_confirmed = False
+        self.coast_ticks = 0
+        self._guidance_ticks = 0
+        # The guidance steps in a worker thread; a step slower than this budget (wall seconds)
+        # does not freeze the setpoint stream: that tick coasts (see tick.coast_setpoint).
+        self._step_budget_s = 0.5 / options.rate_hz
+        self._worker = concurrent.futures.ThreadPoolExecutor(max_workers=1,
+                                                             thread_name_prefix="guidance")
 
     # ------------------------------------------------------------------ helpers
 
@@ -421,6 +429,9 @@ class FlightRunner:
         target_mode = "offboard" if self.link.info.autopilot == "px4" else "guided"
         t_first: float | None = None
         prev_course_cmd = None
+        pending = None
+        last_result = None
+        worker = self._worker
         prev_course = self.mission.path.start_heading_rad
         p = self.link.state.position
         if p is not None and math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) >= config.min_course_speed_m_s:
@@ -455,24 +466,41 @@ class FlightRunner:
                 age = time.monotonic() - sample.received_s
                 if self.opt.clock == "autopilot":
                     age = max(age, now - sample.time_s)
-            result = compute_tick(guidance, tick.count, t_s, sample, age, config,
-                                  yaw_ned_rad=self.link.state.yaw_ned_rad, prev_course_rad=prev_course,
-                                  prev_course_cmd_rad=prev_course_cmd)
-            prev_course = result.course_rad
-            prev_course_cmd = result.course_cmd_rad
-            self._send(result.setpoint)
-            time_usec = sample.time_boot_ms * 1000 if sample is not None else 0
-            self.link.record_debug("guidance", tick.count, time_usec, result.debug)
+            result = None
+            for _ in range(2):
+                fresh = False
+                if pending is None:
+                    pending = worker.submit(
+                        compute_tick, guidance, self._guidance_ticks, t_s, sample, age, config,
+                        yaw_ned_rad=self.link.state.yaw_ned_rad, prev_course_rad=prev_course,
+                        prev_course_cmd_rad=prev_course_cmd)
+                    self._guidance_ticks += 1
+                    fresh = True
+                try:
+                    done = pending.result(timeout=self._step_budget_s)
+                except concurrent.futures.TimeoutError:
+                    break  # still computing: coast this tick
+                pending = None
+                self._after_guidance(done)
+                last_result = done
+                prev_course = done.course_rad
+                if fresh:
+                    result = done
+                    prev_course_cmd = done.course_cmd_rad
+                    break
+                # A late result (its tick already coasted): compute this tick afresh.
+            if result is not None:
+                self._send(result.setpoint)
+            else:
+                sp = coast_setpoint(last_result, sample, age, config,
+                                    prev_course_cmd if prev_course_cmd is not None else math.nan)
+                self._send(sp)
+                self.coast_ticks += 1
+                prev_course_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)
             self.tlog.flush()
-            self._record(result, sample)
             sched.done()
-            if result.is_hold != self._in_hold:
-                self._in_hold = result.is_hold
-                if result.is_hold:
-                    self._event(f"HOLD: position {result.hold_reason} (age {age:.2f} s > "
-                                f"--stale-s {self.opt.stale_s:g}); zero velocity, zero yaw rate")
-                else:
-                    self._event("position fresh again: guidance resumed")
+            if result is None:
+                continue
             self._live(result, sched)
             if result.phase == "finished":
                 self.exit_reason = "finished"
@@ -482,6 +510,20 @@ class FlightRunner:
                 self.exit_reason = "max duration"
                 self._event(f"stopping after --max-duration-s {self.opt.max_duration_s:g}")
                 return
+
+    def _after_guidance(self, result) -> None:
+        """Record a finished compute_tick (in the tlog and the flight record); report holds."""
+        sample = result.sample
+        time_usec = sample.time_boot_ms * 1000 if sample is not None else 0
+        self.link.record_debug("guidance", result.tick, time_usec, result.debug)
+        self._record(result, sample)
+        if result.is_hold != self._in_hold:
+            self._in_hold = result.is_hold
+            if result.is_hold:
+                self._event(f"HOLD: position {result.hold_reason} (age {result.sample_age_s:.2f} s > "
+                            f"--stale-s {self.opt.stale_s:g}); zero velocity, zero yaw rate")
+            else:
+                self._event("position fresh again: guidance resumed")
 
     def _wait_resume(self, target_mode: str) -> None:
         self._event(f"--resume: waiting for the pilot to select {target_mode.upper()} again")
@@ -558,6 +600,7 @@ class FlightRunner:
             self.exit_reason = str(err).splitlines()[0] if str(err) else type(err).__name__
             raise
         finally:
+            self._worker.shutdown(wait=False, cancel_futures=True)
             self.status.close()
             self.summary = self._summarise()
             if self.link is not None:
@@ -580,6 +623,7 @@ class FlightRunner:
             "ticks": len(r.t_s),
             "skipped_ticks": stats.get("skipped_ticks", 0),
             "hold_ticks": self.hold_ticks,
+            "coast_ticks": self.coast_ticks,
             "setpoints_sent": self.setpoints_sent,
             "clock": self.opt.clock,
             "exit": self.exit_reason,

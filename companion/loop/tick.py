@@ -69,6 +69,8 @@ DEBUG_FIELDS = (
     "roll_cmd_rad",          # 20 fixed-wing roll command (NED, right wing down +), NaN otherwise
     "alt_m",                 # 21 measured altitude (up)
     "course_cmd_enu_rad",    # 22 commanded course (velocity setpoint direction), NaN when none
+    "prev_course_cmd_rad",   # 23 the prev_course_cmd_rad this tick was given (NaN for None)
+    "prev_course_rad",       # 24 the prev_course_rad this tick was given
 )
 
 
@@ -208,11 +210,32 @@ def compute_tick(
 
     result = TickResult(tick, t_s, phase, hold_reason, state, output, setpoint, sample,
                         sample_age_s, course, course_cmd)
-    object.__setattr__(result, "debug", debug_row(result, ground_speed, alt_m))
+    prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
+    object.__setattr__(result, "debug", debug_row(result, ground_speed, alt_m, prev_cmd, prev_course_rad))
     return result
 
 
-def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float) -> list[float]:
+def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sample_age_s: float,
+                   config: TickConfig, course_cmd_rad: float) -> VelocitySetpoint | AttitudeSetpoint:
+    """The setpoint for a tick whose guidance step has not finished yet (a slow re-optimisation).
+
+    Keeps turning at the last commanded acceleration from the commanded course (the zero-order hold
+    of ``a_cmd`` the offline simulator assumes), so a slow step never freezes the velocity vector.
+    Stale or missing data, or a last tick that was a hold or the end, give a hold.
+    """
+    alt_m = -sample.z_ned_m if sample is not None else math.nan
+    if (sample is None or not (sample_age_s <= config.stale_s) or last is None or last.output is None
+            or last.phase in ("finished", "hold") or not math.isfinite(last.output.a_cmd_m_s2)):
+        return hold_setpoint(alt_m, config.altitude_hold if sample is not None else None)
+    a_cmd = float(last.output.a_cmd_m_s2)
+    if config.output == "attitude":
+        return attitude_setpoint(a_cmd, last.course_rad, config.max_bank_deg, config.thrust)
+    base = course_cmd_rad if math.isfinite(course_cmd_rad) else last.course_rad
+    return velocity_setpoint(a_cmd, base, config.speed_m_s, config.dt_s, alt_m, config.altitude_hold)
+
+
+def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float,
+              prev_course_cmd_rad: float = math.nan, prev_course_rad: float = math.nan) -> list[float]:
     """The ``DEBUG_FIELDS`` row of a tick (NaN where a field does not apply)."""
     nan = math.nan
     out = result.output
@@ -250,6 +273,8 @@ def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float) -> list
         float(roll),
         float(alt_m),
         float(result.course_cmd_rad),
+        float(prev_course_cmd_rad),
+        float(prev_course_rad),
     ]
     assert len(row) == len(DEBUG_FIELDS)
     return row
