@@ -56,7 +56,7 @@ SOURCE_SAMPLES = 20_001
 PROJECT_WINDOW_FACTOR = 2.0
 PROJECT_WINDOW_MIN_M = 2.0
 # Coarse stride of the look-ahead scan.
-LOOKAHEAD_STRIDE_M = 0.25
+LOOKAHEAD_STRIDE_M = 0.5
 
 
 class Path:
@@ -105,6 +105,10 @@ class Path:
         self._tx = self.tx_table.tolist()
         self._ty = self.ty_table.tolist()
         self._k = self.k_table_1_m.tolist()
+        # Interval table for the vectorised queries: row i holds nodes i and i + 1.
+        table = np.stack([self.x_table_m, self.y_table_m, self.tx_table, self.ty_table,
+                          self.k_table_1_m], axis=1)
+        self._pairs = np.ascontiguousarray(np.stack([table[:-1], table[1:]], axis=1))
         self.start_xy_m = (self._x[0], self._y[0])
         self.start_heading_rad = math.atan2(self._ty[0], self._tx[0])
         self.end_xy_m = (self._x[-1], self._y[-1])
@@ -235,6 +239,10 @@ class Path:
         else:
             hx, hy = self.point(s_hint)
             window_m = PROJECT_WINDOW_FACTOR * math.hypot(x_m - hx, y_m - hy) + PROJECT_WINDOW_MIN_M
+            s_newton = self._newton_projection(x_m, y_m, s_hint, window_m)
+            if s_newton is not None:
+                return s_newton
+            # Newton did not settle: scan the window around the hint.
             c = self.wrap(s_hint) * self._inv_h
             w = int(window_m * self._inv_h) + 2
             lo, hi = int(c) - w, int(c) + w + 1
@@ -252,6 +260,29 @@ class Path:
             dy = self.y_table_m[lo:hi + 1] - y_m
             j = lo + int(np.argmin(dx * dx + dy * dy))
         return self._refine_projection(x_m, y_m, j)
+
+    def _newton_projection(self, x_m: float, y_m: float, s_hint: float, window_m: float) -> float | None:
+        """Closest point by Newton from the hint: the local minimum of the distance the hint is in.
+
+        Returns None (the caller then scans the window) when Newton does not settle within a
+        few steps on a minimum inside the window, or leaves an open path's ends.
+        """
+        s = self.wrap(s_hint)
+        s0 = s
+        for _ in range(6):
+            px, py, tx, ty, k = self.frame(s)
+            dx, dy = px - x_m, py - y_m
+            g = dx * tx + dy * ty
+            dg = 1.0 + k * (dx * -ty + dy * tx)
+            if dg <= 0.05:
+                return None
+            step = g / dg
+            s -= step
+            if abs(s - s0) > window_m or (not self.closed and not 0.0 <= s <= self.length_m):
+                return None
+            if abs(step) < 1e-7:
+                return self.wrap(s)
+        return None
 
     def _refine_projection(self, x_m: float, y_m: float, j: int) -> float:
         """Closest point near node ``j``: Newton on ``(p(s) - q) . t(s) = 0`` within one node spacing."""
@@ -290,9 +321,9 @@ class Path:
         may exceed ``length_m`` (it is ``s_from`` plus the distance travelled along the path;
         every query wraps it).
 
-        The path is scanned forward at a stride of about ``LOOKAHEAD_STRIDE_M`` (then node by node
-        in the bracketing stride), so an excursion out of the circle and back in shorter than
-        the stride would be missed: far below anything a vehicle can follow.
+        The path is scanned forward at a stride of about ``LOOKAHEAD_STRIDE_M``, then the
+        crossing is solved inside the bracketing stride, so an excursion out of the circle and
+        back in shorter than the stride would be missed: far below anything a vehicle can follow.
 
         Returns ``None`` when the path ends (open path) or a lap is completed before leaving the
         circle, or when the path never enters the circle (the vehicle is more than ``l1_m`` from
@@ -312,7 +343,13 @@ class Path:
         # Coarse march: first node pair (a, b) with a inside the circle and b outside.
         a = j0
         px, py = self.point(s_from)
-        a_inside = (px - x_m) ** 2 + (py - y_m) ** 2 <= r2  # at s_from itself
+        d2_from = (px - x_m) ** 2 + (py - y_m) ** 2
+        a_inside = d2_from <= r2  # at s_from itself
+        if a_inside:
+            # |p(s) - q| <= (s - s_from) + |p(s_from) - q|: every point up to L1 - d further on
+            # is inside the circle, so the march can start there.
+            skip_nodes = int((l1_m - math.sqrt(d2_from)) * self._inv_h)
+            a = max(j0, min(j0 + skip_nodes, j_end - 1))
         while a < j_end:
             b = min(a + stride, j_end)
             jb = b % n if closed else b
@@ -324,39 +361,33 @@ class Path:
             a, a_inside = b, b_inside
         else:
             return None
-        # Fine march inside the stride: the last node i0 before the first node outside.
-        i0 = a
-        for j in range(a + 1, b + 1):
-            jj = j % n if closed else j
-            dx = X[jj] - x_m
-            dy = Y[jj] - y_m
-            if dx * dx + dy * dy > r2:
-                break
-            i0 = j
-        return self._refine_lookahead(x_m, y_m, r2, i0, max(s_from, i0 * self._h))
+        return self._refine_lookahead(x_m, y_m, r2, max(s_from, a * self._h), b * self._h)
 
-    def _refine_lookahead(self, x_m: float, y_m: float, r2: float, i0: int, s_lo: float) -> float:
-        """Bisection + secant for ``|p(s) - q|^2 = r2`` on node interval ``[i0, i0 + 1]``."""
-        h = self._h
-        a = s_lo
-        b = (i0 + 1) * h
+    def _refine_lookahead(self, x_m: float, y_m: float, r2: float, a: float, b: float) -> float:
+        """Root of ``|p(s) - q|^2 = r2`` in ``[a, b]`` (inside at a, outside at b): Illinois method."""
         fa = self._f_circle(a, x_m, y_m, r2)
         fb = self._f_circle(b, x_m, y_m, r2)
-        if fa > 0.0:  # s_from itself outside after the refinement of the node: return s_from
+        if fa > 0.0:  # the bracket's start is already outside (rounding at s_from)
             return a
-        for _ in range(40):
-            # Regula falsi with bisection safeguard.
+        side = 0
+        for _ in range(60):
             m = a - fa * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
             if not (a < m < b):
                 m = 0.5 * (a + b)
             fm = self._f_circle(m, x_m, y_m, r2)
             if fm <= 0.0:
                 a, fa = m, fm
+                if side == -1:
+                    fb *= 0.5
+                side = -1
             else:
                 b, fb = m, fm
-            if b - a < 1e-9 or abs(fm) < 1e-12:
-                break
-        return a if -fa < fb else b
+                if side == 1:
+                    fa *= 0.5
+                side = 1
+            if b - a < 1e-9 or abs(fm) < 1e-10:
+                return m
+        return 0.5 * (a + b)
 
     def _f_circle(self, s: float, x_m: float, y_m: float, r2: float) -> float:
         px, py = self.point(s)
@@ -369,7 +400,7 @@ class Path:
         if self.closed:
             s = np.mod(s, self.length_m)
         else:
-            s = np.clip(s, 0.0, self.length_m)
+            s = np.minimum(np.maximum(s, 0.0), self.length_m)
         q = s * self._inv_h
         i = np.minimum(q.astype(np.intp), self._n - 1)
         return i, q - i
@@ -414,10 +445,12 @@ class Path:
         h10 = (u3 - 2 * u2 + u) * h
         h01 = -2 * u3 + 3 * u2
         h11 = (u3 - u2) * h
-        X, Y, TX, TY, K = self.x_table_m, self.y_table_m, self.tx_table, self.ty_table, self.k_table_1_m
-        tx0, tx1, ty0, ty1, k0, k1 = TX[i], TX[i + 1], TY[i], TY[i + 1], K[i], K[i + 1]
-        px = h00 * X[i] + h10 * tx0 + h01 * X[i + 1] + h11 * tx1
-        py = h00 * Y[i] + h10 * ty0 + h01 * Y[i + 1] + h11 * ty1
+        # One gather of both end nodes' rows: (..., 2, 5) = (node i / i + 1, x y tx ty k).
+        rows = self._pairs[i]
+        x0, y0, tx0, ty0, k0 = rows[..., 0, 0], rows[..., 0, 1], rows[..., 0, 2], rows[..., 0, 3], rows[..., 0, 4]
+        x1, y1, tx1, ty1, k1 = rows[..., 1, 0], rows[..., 1, 1], rows[..., 1, 2], rows[..., 1, 3], rows[..., 1, 4]
+        px = h00 * x0 + h10 * tx0 + h01 * x1 + h11 * tx1
+        py = h00 * y0 + h10 * ty0 + h01 * y1 + h11 * ty1
         ax = h00 * tx0 - h10 * k0 * ty0 + h01 * tx1 - h11 * k1 * ty1
         ay = h00 * ty0 + h10 * k0 * tx0 + h01 * ty1 + h11 * k1 * tx1
         norm = np.hypot(ax, ay)

@@ -32,8 +32,8 @@ from companion.guidance.types import GuidanceParams
 
 RHO_LOG10_RANGE = (-1.0, 7.0)
 RHO_COARSE_COUNT = 17  # log-spaced ratios in the first batch (half a decade apart)
-RHO_FINE_COUNT = 6  # second batch: +- half a decade around the best ratio
-ROLLOUT_MAX_STEPS = 60
+RHO_FINE_COUNT = 4  # second batch: within half a decade of the best ratio
+ROLLOUT_MAX_STEPS = 40
 
 
 def gains_from_ratio(rho: float, k1_max: float, k2_max: float) -> tuple[float, float]:
@@ -134,23 +134,16 @@ class GainOptimiser:
         s_l = np.full(m, max(s_look_m, s_proj_m))
         s_max = math.inf if path.closed else path.length_m
         sq_sum = np.zeros(m)
+        px, py, tx, ty, k = path.frame_array(s_p)
         for _ in range(n_steps):
-            # Projection: two Newton steps on (p(s) - q) . t(s) = 0 from the previous one.
-            for _ in range(2):
-                px, py, tx, ty, k = path.frame_array(s_p)
-                dx, dy = px - x, py - y
-                g = dx * tx + dy * ty
-                dg = np.maximum(1.0 + k * (dy * tx - dx * ty), 0.2)
-                s_p = np.clip(s_p - g / dg, 0.0, s_max)
-            px, py, tx, ty, _ = path.frame_array(s_p)
-            # Look-ahead: Newton on |p(s) - q|^2 = L1^2 forward of the projection.
-            s_l = np.maximum(s_l, s_p)
-            for _ in range(3):
-                lx, ly, ltx, lty, lk = path.frame_array(s_l)
-                ex, ey = lx - x, ly - y
-                f = ex * ex + ey * ey - l1sq
-                df = np.maximum(2.0 * (ex * ltx + ey * lty), 0.5 * l1)
-                s_l = np.clip(s_l - np.clip(f / df, -2.0, 2.0), s_p, s_max)
+            # Look-ahead: Newton on |p(s) - q|^2 = L1^2 from the previous one, kept ahead of
+            # the projection; one step per tick is enough as it moves ~V dt between ticks.
+            s_l = np.maximum(s_l + V * dt, s_p)
+            lx, ly, ltx, lty, lk = path.frame_array(s_l)
+            ex, ey = lx - x, ly - y
+            f = ex * ex + ey * ey - l1sq
+            df = np.maximum(2.0 * (ex * ltx + ey * lty), 0.5 * l1)
+            s_l = np.minimum(np.maximum(s_l - np.clip(f / df, -2.0, 2.0), s_p), s_max)
             lx, ly, ltx, lty, lk = path.frame_array(s_l)
             a = corrector_command_array(x, y, psi, V, l1, px, py, tx, ty, lx, ly, ltx, lty, lk, k1, k2)
             # Exact unicycle step for a constant turn rate (eq. 1).
@@ -162,13 +155,12 @@ class GainOptimiser:
             x = x + np.where(small, V * dt * np.cos(psi), V / w_safe * (np.sin(psi_new) - np.sin(psi)))
             y = y + np.where(small, V * dt * np.sin(psi), -V / w_safe * (np.cos(psi_new) - np.cos(psi)))
             psi = psi_new
-            # Cross-track error after the step (distance to the tracked projection).
-            for _ in range(1):
-                px, py, tx, ty, k = path.frame_array(s_p)
-                dx, dy = px - x, py - y
-                g = dx * tx + dy * ty
-                dg = np.maximum(1.0 + k * (dy * tx - dx * ty), 0.2)
-                s_p = np.clip(s_p - g / dg, 0.0, s_max)
-            px, py = path.point_array(s_p)
+            # Projection after the step: one Newton step on (p(s) - q) . t(s) = 0 from the
+            # previous projection (the vehicle moved V dt), then the cross-track error there.
+            dx, dy = px - x, py - y
+            g = dx * tx + dy * ty
+            dg = np.maximum(1.0 + k * (dy * tx - dx * ty), 0.2)
+            s_p = np.minimum(np.maximum(s_p - g / dg, 0.0), s_max)
+            px, py, tx, ty, k = path.frame_array(s_p)
             sq_sum += (px - x) ** 2 + (py - y) ** 2
         return sq_sum / n_steps
