@@ -9,9 +9,9 @@ and the failsafe rules, and advances the model.
 
 Rules modelled (see ``docs/sitl_mock.md`` for the sources):
 
-* PX4 refuses OFFBOARD unless setpoints are already streaming (at least two in the last second,
-  the newest younger than ``COM_OF_LOSS_T``), and falls back to Hold (``COM_OBL_RC_ACT`` = 5)
-  when they stop for ``COM_OF_LOSS_T``.
+* PX4 refuses OFFBOARD unless setpoints are already streaming (the newest younger than
+  ``COM_OF_LOSS_T``, PX4's own test), and falls back to Hold (``COM_OBL_RC_ACT`` = 5) when they
+  stop for ``COM_OF_LOSS_T``.
 * ArduPilot GUIDED velocity and acceleration targets expire after ``GUID_TIMEOUT``: the vehicle
   brakes to a stop and stays in GUIDED. Position targets do not expire. ArduCopter ignores
   guided targets on the ground until ``MAV_CMD_NAV_TAKEOFF``, and reads the position bits of
@@ -24,7 +24,6 @@ Rules modelled (see ``docs/sitl_mock.md`` for the sources):
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 from sitl_mock.personality import Mode, Personality
@@ -61,7 +60,6 @@ MASK_YAW = 1024
 MASK_YAW_RATE = 2048
 
 ARM_FORCE_MAGIC = 21196
-OFFBOARD_MIN_SETPOINTS_PER_S = 2
 KP_POS_MAX_1_S = 1.0  # position-loop gain ceiling (1/s)
 KP_YAW_1_S = 2.0  # heading-loop gain (1/s)
 KP_ALT_PLANE_1_S = 0.5
@@ -139,7 +137,6 @@ class FlightLogic:
         self.mode: Mode = personality.hold_mode if start_airborne else personality.boot_mode
         self.events: list[tuple[int, str]] = []
         self.setpoint: Setpoint | None = None
-        self._setpoint_times: deque[float] = deque(maxlen=64)
         self._last_setpoint_s = -math.inf
         self._attitude_roll_rad: float | None = None
         self._attitude_s = -math.inf
@@ -223,12 +220,12 @@ class FlightLogic:
         return self._param("TKOFF_ALT", 50.0) if self.pers.vehicle == "plane" else 2.5
 
     def offboard_stream_ok(self) -> bool:
-        """PX4's offboard-signal check: setpoints arriving at > 2 Hz, the newest fresh."""
-        now = self.t_s
-        if now - self._last_setpoint_s > self.setpoint_timeout_s:
-            return False
-        recent = sum(1 for t in self._setpoint_times if now - t <= 1.0)
-        return recent >= OFFBOARD_MIN_SETPOINTS_PER_S
+        """PX4's offboard-signal check: the newest setpoint is younger than ``COM_OF_LOSS_T``.
+
+        This is the test PX4 applies (``HealthAndArmingChecks/checks/offboardCheck.cpp``); the
+        documented "stream at more than 2 Hz" follows from it together with the loss failsafe.
+        """
+        return self.t_s - self._last_setpoint_s < self.setpoint_timeout_s
 
     def landed_state(self) -> int:
         """MAV_LANDED_STATE for EXTENDED_SYS_STATE."""
@@ -391,7 +388,6 @@ class FlightLogic:
             return tuple(out)
 
         now = self.t_s
-        self._setpoint_times.append(now)
         self._last_setpoint_s = now
         p_ned = convert(pos, ign_pos, True)
         v_ned = convert(vel, ign_vel, False)
@@ -419,7 +415,6 @@ class FlightLogic:
         if not _finite(*q) or abs(math.sqrt(sum(c * c for c in q)) - 1.0) > 0.1:
             return "bad_value"
         now = self.t_s
-        self._setpoint_times.append(now)
         self._last_setpoint_s = now
         if not self.pers.is_px4 and self.mode.behaviour != "guided":
             return "not_guided"

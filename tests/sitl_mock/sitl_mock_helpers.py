@@ -78,6 +78,7 @@ class Client:
     def command(self, command: int, *params: float, target=(1, 1), timeout_s: float = 10.0):
         """Send COMMAND_LONG (unset params NaN) and return the matching COMMAND_ACK result."""
         p = list(params) + [NAN] * (7 - len(params))
+        self.drain()  # a full receive buffer would drop the ACK
         self.mav.command_long_send(target[0], target[1], command, 0, *p)
         ack = self.wait("COMMAND_ACK", timeout_s, lambda m: m.command == command)
         return None if ack is None else ack.result

@@ -44,8 +44,10 @@ def test_px4_refuses_offboard_before_setpoints_stream_and_accepts_after():
     assert f.set_mode(offboard) == fl.MAV_RESULT_TEMPORARILY_REJECTED
     assert f.mode.name == "AUTO.LOITER"
     assert any("Offboard refused" in text for _, text in f.events)
+    # PX4 checks that the newest setpoint is younger than COM_OF_LOSS_T (0.5 s here).
     f.set_position_target(*vel_setpoint(1.0, 0.0))
-    assert f.set_mode(offboard) == fl.MAV_RESULT_TEMPORARILY_REJECTED  # one setpoint is not a stream
+    advance(f, 0.6)
+    assert f.set_mode(offboard) == fl.MAV_RESULT_TEMPORARILY_REJECTED  # a stale setpoint is not a stream
     advance(f, 0.5, vel_setpoint(1.0, 0.0))
     assert f.set_mode(offboard) == fl.MAV_RESULT_ACCEPTED
     assert f.mode.custom_mode == px4_custom_mode(6)
