@@ -1,0 +1,120 @@
+"""MAVLink 2 signing end to end: ``--signing-key-file`` on ``companion fly`` and on sitl_mock.
+
+- The same key on both (the companion given a passphrase, the mock the 64 hex characters of its
+  SHA-256, which must be the same key): the flight works; unsigned and wrongly signed messages
+  injected into both directions from the peers' own addresses are rejected, counted, and change
+  nothing (the guidance never sees the forged positions, the vehicle never follows the forged
+  setpoints).
+- The companion without the key: the autopilot drops everything it sends, so OFFBOARD is never
+  acknowledged and the companion refuses to fly.
+- Different keys: the companion rejects every autopilot message and never pairs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+
+from figures import record
+from harness import PHASE_HOLD, Companion, Mock, free_udp_port, guidance_records, read_tlog, write_mission
+from mavframes import Encoder
+from udp_proxy import FaultProxy
+
+F_PHASE, F_Y = 2, 9
+PASSPHRASE = "correct horse battery staple"
+KEY = hashlib.sha256(PASSPHRASE.encode()).digest()
+OTHER_KEY = bytes(range(32))
+
+
+def signed(msg) -> bool:
+    """The frame as recorded is MAVLink 2 with the signed flag and the 13-byte signature."""
+    buf = bytes(msg.get_msgbuf())
+    return buf[0] == 0xFD and bool(buf[2] & 0x01) and len(buf) == 10 + buf[1] + 2 + 13
+
+
+def test_same_key_flies_and_forged_messages_both_ways_are_rejected_and_counted(tmp_path):
+    (tmp_path / "companion.key").write_text(PASSPHRASE + "\n")
+    (tmp_path / "mock.key").write_text(KEY.hex() + "\n")
+    port = free_udp_port()
+    mission = write_mission(tmp_path)
+    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "5",
+                     "--signing-key-file", str(tmp_path / "companion.key"))
+    unsigned = Encoder(1, 1)
+    wrong = Encoder(1, 1, signing_key=OTHER_KEY)
+    unsigned_c = Encoder(1, 191)
+    wrong_c = Encoder(1, 191, signing_key=OTHER_KEY)
+    n_each = 0
+    with FaultProxy(port) as proxy:
+        mock = Mock(f"udpout:127.0.0.1:{proxy.port}", "--signing-key-file", str(tmp_path / "mock.key"),
+                    tlog=tmp_path / "m.tlog")
+        try:
+            comp.wait_flying()
+            t_ms = 50_000_000
+            end = time.monotonic() + 2.0
+            while time.monotonic() < end:
+                # To the companion: a position 30 m north of the path, newer than anything real.
+                proxy.inject_to_companion(unsigned.local_position(t_ms, x=30.0, vy=5.0))
+                proxy.inject_to_companion(wrong.local_position(t_ms + 1, x=30.0, vy=5.0))
+                # To the autopilot: fly north at 5 m/s.
+                proxy.inject_to_autopilot(unsigned_c.position_target(vx=5.0))
+                proxy.inject_to_autopilot(wrong_c.position_target(vx=5.0))
+                n_each += 1
+                t_ms += 20
+                time.sleep(0.02)
+            rc, summary = comp.result()
+        finally:
+            mock_summary = mock.stop()
+    assert rc == 0 and summary["exit"] == "max duration", comp.stderr
+    rej = summary["link"]["rejected"]
+    assert rej["unsigned"] >= 0.9 * n_each and rej["bad_signature"] >= 0.9 * n_each, rej
+    assert mock_summary["unsigned"] >= 0.9 * n_each and mock_summary["bad_signature"] >= 0.9 * n_each
+    msgs = read_tlog(tmp_path / "c.tlog")
+    # Every message received and recorded by the companion is signed (incompat flag 0x01) ...
+    received = [m for m in msgs if m.get_srcComponent() == 1]
+    assert received and all(signed(m) for m in received)
+    # ... and so is everything it sent (the tlog holds the bytes as sent).
+    sent = [m for m in msgs if m.get_srcComponent() == 191 and m.get_type() != "DEBUG_FLOAT_ARRAY"]
+    assert sent and all(signed(m) for m in sent)
+    # The forged positions never reached the guidance; the forged setpoints never moved the vehicle.
+    g = [r for r in guidance_records(msgs) if r.data[F_PHASE] != PHASE_HOLD]
+    assert g and all(abs(r.data[F_Y]) < 0.5 for r in g)
+    assert summary["hold_ticks"] == 0
+    record("signing_same_key", forged_each_kind=n_each, companion_rejected=rej,
+           mock_unsigned=mock_summary["unsigned"], mock_bad_signature=mock_summary["bad_signature"])
+
+
+def test_companion_without_the_key_is_ignored_by_a_signing_autopilot_and_does_not_fly(tmp_path):
+    (tmp_path / "mock.key").write_text(KEY.hex())
+    port = free_udp_port()
+    mission = write_mission(tmp_path)
+    comp = Companion(mission, port, tmp_path / "c.tlog")
+    mock = Mock(f"udpout:127.0.0.1:{port}", "--signing-key-file", str(tmp_path / "mock.key"),
+                tlog=tmp_path / "m.tlog")
+    try:
+        rc, summary = comp.result(60)
+    finally:
+        mock_summary = mock.stop()
+    assert rc in (1, 2), comp.stderr  # refused to start: no ACK for its requests
+    assert summary["setpoints_sent"] == 0 or summary["ticks"] == 0
+    assert summary["ticks"] == 0
+    assert mock_summary["unsigned"] > 0 and mock_summary["rx_frames_ok"] == 0
+    # The autopilot never acted on anything from the companion.
+    assert not [m for m in read_tlog(tmp_path / "m.tlog") if m.get_srcComponent() == 191]
+
+
+def test_different_keys_never_pair(tmp_path):
+    (tmp_path / "companion.key").write_text(OTHER_KEY.hex())
+    (tmp_path / "mock.key").write_text(KEY.hex())
+    port = free_udp_port()
+    mission = write_mission(tmp_path)
+    comp = Companion(mission, port, tmp_path / "c.tlog", "--signing-key-file", str(tmp_path / "companion.key"),
+                     "--heartbeat-timeout-s", "3")
+    mock = Mock(f"udpout:127.0.0.1:{port}", "--signing-key-file", str(tmp_path / "mock.key"))
+    try:
+        rc, summary = comp.result(60)
+    finally:
+        mock.stop()
+    assert rc == 2, comp.stderr
+    assert "no HEARTBEAT" in comp.stderr
+    assert summary["link"]["rejected"]["bad_signature"] > 0
+    assert summary["link"]["received"] == 0
