@@ -4,7 +4,7 @@ guidance reports the end; closed paths: one full lap of arc length after reachin
 
 Run this file directly to print the table of ``docs/missions.md``::
 
-    .venv/bin/python tests/mission/test_gallery.py
+    .venv/bin/python tests/mission/test_mission_gallery.py
 """
 
 from __future__ import annotations
