@@ -411,6 +411,7 @@ class FlightRunner:
         if info.autopilot == "ardupilot" and info.vehicle == "copter" and action == "hold":
             p = self.link.state.position
             self.link.send_position_hold(p.x_ned_m, p.y_ned_m, p.z_ned_m)
+            self.setpoints_sent += 1
             self._event("path finished: holding position in GUIDED")
             return
         try:
