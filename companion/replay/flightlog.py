@@ -3,13 +3,13 @@
 Two kinds of log are understood:
 
 ``companion``
-    The companion recorded, after each tick's setpoint, one ``DEBUG_FLOAT_ARRAY`` named
+    The companion recorded, with each tick's setpoint, one ``DEBUG_FLOAT_ARRAY`` named
     ``"guidance"`` (layout :data:`companion.loop.tick.DEBUG_FIELDS`). Its ``time_usec`` is
     ``time_boot_ms * 1000`` of the ``LOCAL_POSITION_NED`` sample the tick used, so the tick is
     rebuilt exactly: that sample (looked up by ``time_boot_ms`` among the samples received before
-    the record), the tick counter, the tick time ``t_s`` and the sample age from the record, the
-    newest ``ATTITUDE`` yaw received before it, and the setpoint the same sender sent last
-    before it.
+    the record), the tick counter, the tick time ``t_s``, the sample age and the carried course
+    state from the record, the newest ``ATTITUDE`` yaw received before it, and the setpoint the
+    same sender sent with it (see :func:`_pair_setpoints`).
 
 ``setpoints``
     Any other log with ``SET_POSITION_TARGET_LOCAL_NED`` (another controller, a script): each
@@ -125,11 +125,11 @@ def read_flight(
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
     newest_yaw: dict[int, float] = {}
-    last_setpoint: dict[tuple[int, int], tuple[LoggedSetpoint, int]] = {}  # sender -> (sp, target)
+    # per sender, in file order: (tlog time, LoggedSetpoint or LoggedTick, target system)
+    events: dict[tuple[int, int], list[tuple]] = {}
     companion_ticks: list[LoggedTick] = []
     setpoint_ticks: list[LoggedTick] = []
     notes: list[str] = []
-    lost_setpoints = 0
     reconstructed = 0
     first_boot_ms = None
 
@@ -152,7 +152,7 @@ def read_flight(
             elif mid == ID_SPT:
                 sp = _setpoint(msg)
                 sender = (rec.src_system, rec.src_component)
-                last_setpoint[sender] = (sp, msg.target_system)
+                events.setdefault(sender, []).append((rec.time_s, sp, msg.target_system))
                 found = newest_sample.get(msg.target_system)
                 if found is not None:
                     sample_time, sample = found
@@ -169,14 +169,7 @@ def read_flight(
                     continue
                 row = [float(v) for v in msg.data[:N_DEBUG]]
                 sender = (rec.src_system, rec.src_component)
-                sp_target = last_setpoint.pop(sender, None)
-                if sp_target is None:
-                    lost_setpoints += 1
-                    sp, target = None, None
-                else:
-                    sp, target = sp_target
-                if target is None:
-                    target = next(iter(samples_by_ms), rec.src_system)
+                target = next(iter(samples_by_ms), rec.src_system)
                 boot_ms = int(msg.time_usec // 1000)
                 hold_reason = int(row[DEBUG_INDEX["hold_reason"]])
                 sample = samples_by_ms.get(target, {}).get(boot_ms)
@@ -185,19 +178,27 @@ def read_flight(
                     sample = _sample_from_debug(row, boot_ms)
                     rebuilt = sample is not None
                     reconstructed += rebuilt
-                companion_ticks.append(LoggedTick(
+                tick = LoggedTick(
                     time_unix_s=rec.time_s, tick=int(row[DEBUG_INDEX["tick"]]),
                     t_s=row[DEBUG_INDEX["t_s"]], sample=sample,
                     sample_age_s=row[DEBUG_INDEX["sample_age_s"]],
-                    yaw_ned_rad=newest_yaw.get(target), setpoint=sp, debug=row,
-                    sample_reconstructed=rebuilt))
+                    yaw_ned_rad=newest_yaw.get(target), setpoint=None, debug=row,
+                    sample_reconstructed=rebuilt)
+                companion_ticks.append(tick)
+                events.setdefault(sender, []).append((rec.time_s, tick, None))
 
     if reader.records == 0:
         raise LogError(f"{path}: no MAVLink records could be read ({reader.size_bytes} bytes)")
     if companion_ticks:
         kind, ticks = "companion", companion_ticks
-        if lost_setpoints:
-            notes.append(f"{lost_setpoints} recorded ticks have no setpoint before them (damaged log?)")
+        unpaired_ticks, unpaired_setpoints = _pair_setpoints(events, _tick_rate_hz(companion_ticks))
+        if unpaired_ticks:
+            notes.append(f"{unpaired_ticks} recorded ticks have no setpoint of their own (a result that "
+                         "arrived after its tick had coasted, or a damaged log): stepped, not compared")
+        if unpaired_setpoints:
+            notes.append(f"{unpaired_setpoints} setpoints were sent without a guidance record of their "
+                         "own (pre-stream, coasting while a slow step ran, holds outside the loop): "
+                         "not compared")
         if reconstructed:
             notes.append(f"{reconstructed} ticks used a LOCAL_POSITION_NED sample missing from the log; "
                          "rebuilt from the recorded internals (velocity approximate)")
@@ -209,6 +210,44 @@ def read_flight(
         raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED paired with a LOCAL_POSITION_NED; "
                        "nothing to replay")
     return LoggedFlight(path, kind, ticks, list(reader.warnings), notes, reader.records)
+
+
+def _tick_rate_hz(ticks: list[LoggedTick]) -> float:
+    """Loop rate from the median spacing of the recorded tick times (50 Hz if unknown)."""
+    times = sorted(tk.t_s for tk in ticks if math.isfinite(tk.t_s))
+    steps = [b - a for a, b in zip(times, times[1:]) if b > a]
+    if not steps:
+        return 50.0
+    steps.sort()
+    return 1.0 / steps[len(steps) // 2]
+
+
+def _pair_setpoints(events: dict[tuple[int, int], list[tuple]], rate_hz: float) -> tuple[int, int]:
+    """Give each recorded tick the setpoint its sender sent with it.
+
+    The loop records a tick's guidance row and then sends that tick's setpoint, microseconds
+    apart. A row recorded late (its step outlived its tick, which coasted) is followed either by
+    the row of a fresh step or, when that one is slow too, by a coasting setpoint sent only after
+    the step budget (half a period) has run out. So a row is paired with the next record of the
+    same sender when that is a setpoint at most a quarter of a period later.
+    Returns ``(rows without a setpoint, setpoints without a row)``.
+    """
+    max_gap_s = 0.25 / rate_hz
+    unpaired_rows = 0
+    paired = 0
+    setpoints = 0
+    for seq in events.values():
+        for i, (time_s, item, _) in enumerate(seq):
+            if not isinstance(item, LoggedTick):
+                setpoints += 1
+                continue
+            nxt = seq[i + 1] if i + 1 < len(seq) else None
+            if nxt is not None and isinstance(nxt[1], LoggedSetpoint) and nxt[0] - time_s <= max_gap_s:
+                item.setpoint = nxt[1]
+                paired += 1
+            else:
+                unpaired_rows += 1
+    return unpaired_rows, setpoints - paired
 
 
 def phase_name(code: float) -> str:

@@ -42,7 +42,7 @@ from companion.io.logread import LogWarning
 from companion.io.setpoints import VelocitySetpoint
 from companion.loop.tick import TickConfig, compute_tick
 from companion.mission import Mission, load_mission
-from companion.replay.flightlog import LoggedFlight, LoggedTick, phase_name, read_flight
+from companion.replay.flightlog import DEBUG_INDEX, LoggedFlight, LoggedTick, phase_name, read_flight
 from companion.replay.progress import ByteProgress
 from companion.sim.metrics import tracking_metrics
 
@@ -214,6 +214,13 @@ def replay_flight(
         for i, tk in enumerate(flight.ticks):
             if i % 1024 == 0:
                 bar.update_to(i)
+            recorded_prev = tk.debug_value("prev_course_rad") if "prev_course_rad" in DEBUG_INDEX else math.nan
+            if math.isfinite(recorded_prev):
+                # The loop records the course state each tick was given (it differs from the
+                # previous row's when ticks coasted in between): use it as an input.
+                prev_course = recorded_prev
+                cmd = tk.debug_value("prev_course_cmd_rad")
+                prev_course_cmd = cmd if math.isfinite(cmd) else None
             res = compute_tick(guidance, tk.tick, tk.t_s, tk.sample, tk.sample_age_s, config,
                                yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course,
                                prev_course_cmd_rad=prev_course_cmd)

@@ -2,8 +2,8 @@
 
 :func:`write_synthetic_flight` plays the flight loop against a simple kinematic vehicle and
 records what the loop records: the autopilot's ``LOCAL_POSITION_NED`` (and ``ATTITUDE``,
-``HEARTBEAT``), and per tick the companion's ``SET_POSITION_TARGET_LOCAL_NED`` followed by the
-``DEBUG_FLOAT_ARRAY "guidance"`` row, with the mission written beside the log as
+``HEARTBEAT``), and per tick the companion's ``DEBUG_FLOAT_ARRAY "guidance"`` row followed by its
+``SET_POSITION_TARGET_LOCAL_NED``, with the mission written beside the log as
 ``<tlog>.mission.yaml``. Each tick goes through :func:`companion.loop.tick.compute_tick` with the
 guidance built by :func:`companion.loop.runner.make_guidance`, as in flight. The samples handed to
 the guidance are rounded to float32 first, as they would be after crossing the wire.
@@ -142,10 +142,11 @@ def write_synthetic_flight(
             prev_course = res.course_rad
             prev_course_cmd = res.course_cmd_rad
             sp = res.setpoint
+            # as the runner: the tick's guidance row, then its setpoint
+            tlog.write(companion.debug_float_array_packet("guidance", k, boot_ms * 1000, res.debug), unix)
             tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
                                                           sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
-                                                          sp.yaw_rate_ned_rad_s), unix)
-            tlog.write(companion.debug_float_array_packet("guidance", k, boot_ms * 1000, res.debug), unix)
+                                                          sp.yaw_rate_ned_rad_s), unix + 20e-6)
             # the vehicle follows the commanded horizontal velocity with a first-order lag
             cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
             ve += alpha * (cmd_ve - ve)
