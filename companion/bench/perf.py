@@ -27,7 +27,7 @@ Also reported: the simulation's real-time factor (simulated seconds per wall sec
 the paper sine), the paper bench's wall time (``companion bench paper``'s table), and the steps
 of the other laws (ApL1, NPFG, pure pursuit, predictive) for comparison.
 
-``--quick`` shortens every measurement (fewer samples, a 2-minute synthetic log, one paper
+``--quick`` shortens every measurement (fewer samples, a 1-minute synthetic log, one paper
 heading, short latency and CPU windows) so CI can run it in well under a minute; its figures are
 noisier and the loop-latency/CPU parts are skipped when the mock cannot start.
 """
@@ -113,7 +113,7 @@ def measure_guidance(quick: bool) -> dict:
     from companion.guidance.types import GuidanceParams, VehicleState
     from companion.sim.simulator import LagModel, simulate
 
-    path = _paper_path(120.0 if quick else 300.0)
+    path = _paper_path(60.0 if quick else 300.0)
     start = VehicleState(-15.0, 0.0, math.radians(39.118), 5.0)
     out: dict = {}
     for method in ("fixed_l1", "corrector"):
@@ -141,7 +141,7 @@ def measure_guidance(quick: bool) -> dict:
             out["sim_realtime_factor"] = sim_s / wall if wall > 0 else None
     lag = LagModel(0.3, 5.0)
     params = GuidanceParams(speed_m_s=5.0, rate_hz=50.0)
-    short = _paper_path(60.0 if quick else 120.0)
+    short = _paper_path(30.0 if quick else 120.0)
     for name in ("ap_l1", "npfg", "pure_pursuit", "predictive"):
         timed = _TimedLaw(_rebuild(name, short))
         simulate(short, timed, start, params, model=lag)
@@ -180,7 +180,7 @@ def measure_replay(quick: bool) -> dict:
     from companion.replay.replay import replay_log
     from companion.replay.synthetic import RACETRACK_MISSION, write_synthetic_flight
 
-    duration = 120.0 if quick else 3600.0
+    duration = 60.0 if quick else 3600.0
     with tempfile.TemporaryDirectory() as tmp:
         tlog = Path(tmp) / "synthetic.tlog"
         info = write_synthetic_flight(tlog, RACETRACK_MISSION, duration, 50.0)
