@@ -225,6 +225,9 @@ class FlightRunner:
         self._mode_confirmed = False
         self.coast_ticks = 0
         self._guidance_ticks = 0
+        # PX4 leaves OFFBOARD when setpoints stop: while arming/climbing, _idle streams holds.
+        self._keepalive_config: TickConfig | None = None
+        self._last_keepalive_s = -math.inf
         # The guidance steps in a worker thread; a step slower than this budget (wall seconds)
         # does not freeze the setpoint stream: that tick coasts (see tick.coast_setpoint).
         self._step_budget_s = 0.5 / options.rate_hz
@@ -238,8 +241,13 @@ class FlightRunner:
         self.status.event(text)
 
     def _idle(self) -> None:
-        """Keep our heartbeat going while waiting for anything."""
+        """Keep our heartbeat going while waiting for anything (and PX4's setpoint stream)."""
         self.link.heartbeat_if_due()
+        if self._keepalive_config is not None:
+            now = time.monotonic()
+            if now - self._last_keepalive_s >= 1.0 / self.opt.rate_hz:
+                self._last_keepalive_s = now
+                self._hold_now(self._keepalive_config)
 
     def _pump(self, duration_s: float) -> None:
         end = time.monotonic() + duration_s
@@ -332,6 +340,7 @@ class FlightRunner:
         info = self.link.info
         target_mode = "offboard" if info.autopilot == "px4" else "guided"
         if info.autopilot == "px4":
+            self._keepalive_config = config
             # PX4 refuses OFFBOARD unless setpoints already flow: stream holds >= prestream_s.
             t_end = clock.now() + self.opt.offboard_prestream_s
             wall_end = time.monotonic() + max(5.0, 3 * self.opt.offboard_prestream_s)
@@ -342,7 +351,7 @@ class FlightRunner:
                     clock.wait_until(clock.now() + 1.0 / self.opt.rate_hz)
         if not self.link.in_mode(target_mode):
             result = self.link.set_mode(target_mode, wait_ack_s=1.0, retries=3,
-                                        idle=lambda: (self._idle(), self._hold_now(config)))
+                                        idle=self._idle)
             if result != 0:
                 why = "no COMMAND_ACK" if result is None else MAV_RESULT_NAMES.get(result, str(result))
                 raise FlightAborted(f"the autopilot refused {target_mode.upper()} mode ({why})")
@@ -350,8 +359,6 @@ class FlightRunner:
         while not self.link.in_mode(target_mode):
             if time.monotonic() > end:
                 raise FlightAborted(f"the vehicle did not report {target_mode.upper()} mode within 3 s")
-            if info.autopilot == "px4":
-                self._hold_now(config)
             self._pump(0.02)
         self._mode_confirmed = True
         self._event(f"in {target_mode.upper()} mode")
@@ -361,6 +368,22 @@ class FlightRunner:
             raise FlightAborted("the vehicle is not armed (arm it, or pass --arm)")
         if info.autopilot == "ardupilot" and self.opt.arm and info.vehicle == "copter":
             self._takeoff(config)
+        if info.autopilot == "px4" and self.opt.arm and info.vehicle == "copter":
+            self._climb(config)
+
+    def _climb(self, config: TickConfig) -> None:
+        """PX4 copter armed on the ground: climb with hold setpoints (vz) to the mission altitude."""
+        alt = self.mission.altitude_m
+        self._event(f"climbing to {alt:g} m in OFFBOARD")
+        end = time.monotonic() + 120.0
+        while True:
+            p = self.link.state.position
+            if p is not None and -p.z_ned_m >= 0.9 * alt:
+                return
+            if time.monotonic() > end:
+                raise FlightAborted(f"did not climb to {0.9 * alt:.1f} m within 120 s")
+            self._check_link()
+            self._pump(0.02)
 
     def _arm(self, config: TickConfig) -> None:
         end = time.monotonic() + self.opt.arm_timeout_s
@@ -368,7 +391,7 @@ class FlightRunner:
         last_reason = ""
         while not self.link.state.armed:
             result = self.link.arm(wait_ack_s=1.0, retries=1,
-                                   idle=lambda: (self._idle(), self._prestream(config)))
+                                   idle=self._idle)
             self._pump(0.3)
             if self.link.state.armed:
                 break
@@ -383,10 +406,6 @@ class FlightRunner:
                 raise FlightAborted(f"could not arm within {self.opt.arm_timeout_s:g} s: {last_reason}")
             self._pump(1.0)
         self._event("armed")
-
-    def _prestream(self, config: TickConfig) -> None:
-        if self.link.info.autopilot == "px4":
-            self._hold_now(config)
 
     def _takeoff(self, config: TickConfig) -> None:
         alt = self.opt.takeoff_alt_m or self.mission.altitude_m
@@ -588,6 +607,7 @@ class FlightRunner:
             self._enter_mode(config, clock)
             if config.output == "attitude":
                 self.link.change_speed(self.mission.speed_m_s, wait_ack_s=1.0, retries=2, idle=self._idle)
+            self._keepalive_config = None
             self._event(f"flying {self.mission.name} at {self.opt.rate_hz:g} Hz "
                         f"({config.output} setpoints, {self.opt.clock} clock)")
             self._loop(guidance, config, clock)
