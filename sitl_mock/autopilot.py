@@ -54,14 +54,6 @@ FTP_ERR_FILE_NOT_FOUND = 10
 # SET_POSITION_TARGET_LOCAL_NED, MAVLINK2.
 CAPABILITIES = 0x2 | 0x8 | 0x40 | 0x80 | 0x2000
 
-COMMANDS_NAMED = {
-    400: "COMPONENT_ARM_DISARM", 176: "DO_SET_MODE", 22: "NAV_TAKEOFF", 21: "NAV_LAND", 20: "NAV_RETURN_TO_LAUNCH",
-    511: "SET_MESSAGE_INTERVAL", 510: "GET_MESSAGE_INTERVAL", 512: "REQUEST_MESSAGE",
-    520: "REQUEST_AUTOPILOT_CAPABILITIES", 178: "DO_CHANGE_SPEED", 43000: "GUIDED_CHANGE_SPEED",
-    43001: "GUIDED_CHANGE_ALTITUDE",
-}
-
-
 @dataclass(frozen=True)
 class MockConfig:
     """Everything the command line sets. Validated on construction (ValueError, one line)."""
@@ -286,6 +278,35 @@ class MockAutopilot:
         lon = lon0 + math.degrees(pos_ned_m[1] / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
         return int(round(lat * 1e7)), int(round(lon * 1e7)), alt0 - pos_ned_m[2]
 
+    def local_from_geodetic(self, lat_deg: float, lon_deg: float, alt_amsl_m: float) -> tuple[float, float, float]:
+        """Inverse of :meth:`geodetic`: local NED metres of a geodetic point."""
+        lat0, lon0, alt0 = self.origin
+        north = math.radians(lat_deg - lat0) * EARTH_RADIUS_M
+        east = math.radians(lon_deg - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
+        return north, east, alt0 - alt_amsl_m
+
+    def _reposition(self, p: tuple, int_frame: int | None) -> int:
+        """MAV_CMD_DO_REPOSITION: p5/x latitude, p6/y longitude (degE7 in COMMAND_INT), p7/z altitude.
+
+        The altitude is AMSL, or relative to home in the GLOBAL_RELATIVE_ALT frames of COMMAND_INT;
+        NaN (COMMAND_LONG) or 0 / INT32_MAX (COMMAND_INT) leaves an axis where it is.
+        """
+        lat, lon, alt = p[4], p[5], p[6]
+        if int_frame is not None:
+            lat = lat * 1e-7 if lat not in (0.0, 2**31 - 1) else math.nan
+            lon = lon * 1e-7 if lon not in (0.0, 2**31 - 1) else math.nan
+            if int_frame in (3, 6) and math.isfinite(alt):  # GLOBAL_RELATIVE_ALT(_INT): home is at the origin
+                alt += self.origin[2]
+        north, east, down = self.local_from_geodetic(lat if math.isfinite(lat) else self.origin[0],
+                                                     lon if math.isfinite(lon) else self.origin[1],
+                                                     alt if math.isfinite(alt) else self.origin[2])
+        target = (north if math.isfinite(lat) else None, east if math.isfinite(lon) else None,
+                  down if math.isfinite(alt) else None)
+        if (target[0] is None) != (target[1] is None):
+            return fl.MAV_RESULT_DENIED
+        change_mode = math.isfinite(p[1]) and int(p[1]) & 1
+        return self.flight.reposition(target, bool(change_mode))
+
     # ------------------------------------------------------------------ sending helpers
     def _statustext(self, severity: int, text: str, links: list[Link] | None = None) -> None:
         msg = self.links[0].mav.statustext_encode(severity, text.encode("ascii", "replace")[:50])
@@ -340,13 +361,18 @@ class MockAutopilot:
             params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y), msg.z)
         else:
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
-        result = self.command(link, msg.command, params, src)
+        frame = msg.frame if msg.get_type() == "COMMAND_INT" else None
+        result = self.command(link, msg.command, params, src, frame)
         if result is not None:
             self._ack(link, msg.command, result, src)
         self._flush_events()
 
-    def command(self, link: Link, command: int, p: tuple, src) -> int | None:
-        """Execute a MAV_CMD; return its MAV_RESULT (None if the reply was already sent)."""
+    def command(self, link: Link, command: int, p: tuple, src, int_frame: int | None = None) -> int | None:
+        """Execute a MAV_CMD; return its MAV_RESULT (None if the reply was already sent).
+
+        ``p`` holds param1..7 (COMMAND_INT: x and y as floats in p5, p6); ``int_frame`` is the
+        COMMAND_INT frame, None for COMMAND_LONG.
+        """
         f = self.flight
         if command == 400:
             if not math.isfinite(p[0]) or p[0] not in (0.0, 1.0):
@@ -389,6 +415,8 @@ class MockAutopilot:
             return None
         if command == 178:
             return f.change_speed(p[0], p[1])
+        if command == 192:
+            return self._reposition(p, int_frame)
         if command == 43000 and self.pers.vehicle == "plane" and not self.pers.is_px4:
             if f.mode.behaviour != "guided":
                 return f._refuse(fl.MAV_RESULT_FAILED, "GUIDED_CHANGE_SPEED: not in GUIDED")
@@ -432,6 +460,19 @@ class MockAutopilot:
     def _on_position_target(self, link: Link, msg, src) -> None:
         reason = self.flight.set_position_target(
             msg.coordinate_frame, msg.type_mask, (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz),
+            (msg.afx, msg.afy, msg.afz), msg.yaw, msg.yaw_rate)
+        if reason == "bad_value":
+            self.counters.drop("bad_value")
+
+    def _on_position_target_global(self, link: Link, msg, src) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT: the position converted to local NED, the rest as the local message."""
+        frame = msg.coordinate_frame
+        if frame not in (5, 6, 11):  # GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT, GLOBAL_TERRAIN_ALT_INT
+            return
+        alt_amsl = msg.alt if frame == 5 else self.origin[2] + msg.alt  # home is on the ground at the origin
+        north, east, down = self.local_from_geodetic(msg.lat_int * 1e-7, msg.lon_int * 1e-7, alt_amsl)
+        reason = self.flight.set_position_target(
+            fl.MAV_FRAME_LOCAL_NED, msg.type_mask, (north, east, down), (msg.vx, msg.vy, msg.vz),
             (msg.afx, msg.afy, msg.afz), msg.yaw, msg.yaw_rate)
         if reason == "bad_value":
             self.counters.drop("bad_value")
@@ -522,6 +563,7 @@ class MockAutopilot:
         "COMMAND_INT": _on_command,
         "SET_MODE": _on_set_mode,
         "SET_POSITION_TARGET_LOCAL_NED": _on_position_target,
+        "SET_POSITION_TARGET_GLOBAL_INT": _on_position_target_global,
         "SET_ATTITUDE_TARGET": _on_attitude_target,
         "PARAM_REQUEST_LIST": _on_param_request_list,
         "PARAM_REQUEST_READ": _on_param_request_read,

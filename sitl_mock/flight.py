@@ -324,6 +324,40 @@ class FlightLogic:
         """MAV_CMD_NAV_RETURN_TO_LAUNCH."""
         return self.set_mode(self.pers.rtl_mode)
 
+    def reposition(self, target_ned_m: tuple, change_mode: bool) -> int:
+        """MAV_CMD_DO_REPOSITION: fly to a point (``None`` axes keep the current value).
+
+        PX4 switches to Hold at the point (its reposition is a Hold with a new hold point);
+        ArduPilot flies there in GUIDED, switching to GUIDED only when the command's
+        ``MAV_DO_REPOSITION_FLAGS_CHANGE_MODE`` bit asks for it.
+        """
+        s = self.model.state
+        target = tuple(s.pos_ned_m[i] if v is None else v for i, v in enumerate(target_ned_m))
+        if self.pers.vehicle == "rover":
+            target = (target[0], target[1], 0.0)
+        if self.pers.is_px4:
+            if self.mode != self.pers.hold_mode:
+                self._enter_mode(self.pers.hold_mode)
+                self._say(SEVERITY_INFO, f"Mode {self.mode.name}")
+            self._hold_ned_m = target
+            self._loiter_center_ned_m = (target[0], target[1])
+            self._alt_target_m = -target[2]
+            return MAV_RESULT_ACCEPTED
+        if self.mode.behaviour != "guided":
+            if not change_mode:
+                return self._refuse(MAV_RESULT_FAILED, "Reposition: not in GUIDED")
+            self._enter_mode(self.pers.guided_mode)
+            self._say(SEVERITY_INFO, f"Mode {self.mode.name}")
+        if self.pers.vehicle == "plane":
+            self._attitude_roll_rad = None
+            self._loiter_center_ned_m = (target[0], target[1])
+            self._alt_target_m = -target[2]
+            return MAV_RESULT_ACCEPTED
+        self.setpoint = Setpoint(pos_ned_m=target, vel_ned_m_s=(None, None, None), acc_ned_m_s2=(None, None, None),
+                                 yaw_rad=None, yaw_rate_rad_s=None, hold_ned_m=tuple(s.pos_ned_m),
+                                 received_s=self.t_s, expires=False)
+        return MAV_RESULT_ACCEPTED
+
     def change_speed(self, speed_type: float, speed_m_s: float) -> int:
         """MAV_CMD_DO_CHANGE_SPEED / MAV_CMD_GUIDED_CHANGE_SPEED: plane airspeed or copter/rover speed limit."""
         if not math.isfinite(speed_m_s) or speed_m_s < -2.0:

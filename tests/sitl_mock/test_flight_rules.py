@@ -240,3 +240,13 @@ def test_plane_airspeed_change_is_clipped_to_the_band():
     assert f.airspeed_target_m_s == 25.0
     advance(f, 5.0)
     assert f.model.state.airspeed_m_s == pytest.approx(25.0)
+
+
+def test_ardupilot_reposition_needs_guided_or_the_change_mode_flag():
+    f = make("ardupilot")  # LOITER
+    assert f.reposition((10.0, 0.0, None), change_mode=False) == fl.MAV_RESULT_FAILED
+    assert f.mode.name == "LOITER"
+    assert f.reposition((10.0, 0.0, None), change_mode=True) == fl.MAV_RESULT_ACCEPTED
+    assert f.mode.name == "GUIDED"
+    advance(f, 12.0)
+    assert f.model.state.pos_ned_m == pytest.approx([10.0, 0.0, -10.0], abs=0.05)

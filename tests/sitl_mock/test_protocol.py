@@ -219,3 +219,34 @@ def test_duration_runs_in_simulated_time_and_speedup_shortens_the_wall_time(caps
     out, err = capsys.readouterr()
     assert out.strip() == "sitl_mock ready sysid=1 autopilot=px4 vehicle=copter"
     assert "sim_s=10.00" in err
+
+
+def test_px4_do_reposition_as_command_int_goes_to_hold_at_the_geodetic_point(mock_factory):
+    # 0.0003 deg of latitude north of the origin is 0.0003 * pi/180 * 6378137 = 33.40 m.
+    _, client = mock_factory("--start-airborne", "--start-alt-m", "10", "--speedup", "8",
+                             "--origin", "47.0,8.0,400.0")
+    client.wait("HEARTBEAT")
+    client.drain()
+    client.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0,
+                                -1, 1, 0, NAN, int(47.0003e7), int(8.0e7), 15.0)
+    ack = client.wait("COMMAND_ACK", predicate=lambda m: m.command == M.MAV_CMD_DO_REPOSITION)
+    assert ack.result == M.MAV_RESULT_ACCEPTED
+    north_m = math.radians(0.0003) * 6378137.0
+    pos = client.wait("LOCAL_POSITION_NED", 20.0, lambda m: abs(m.x - north_m) < 0.2 and abs(m.z + 15.0) < 0.2)
+    assert pos is not None and abs(pos.y) < 0.2
+    assert client.wait("HEARTBEAT").custom_mode == HOLD
+
+
+def test_ardupilot_global_int_target_is_flown_in_guided(mock_factory):
+    _, client = mock_factory("--autopilot", "ardupilot", "--start-airborne", "--start-alt-m", "10",
+                             "--speedup", "8", "--origin=-35.0,149.0,500.0")
+    client.wait("HEARTBEAT")
+    assert client.command(M.MAV_CMD_DO_SET_MODE, 1, 4) == M.MAV_RESULT_ACCEPTED
+    assert client.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 32, 20000) == M.MAV_RESULT_ACCEPTED
+    # 0.0002 deg of longitude at 35 deg S is 0.0002 * pi/180 * 6378137 * cos(35 deg) = 18.24 m east.
+    east_m = math.radians(0.0002) * 6378137.0 * math.cos(math.radians(-35.0))
+    client.mav.set_position_target_global_int_send(0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                                                   0b0000_1111_1111_1000, int(-35.0e7), int(149.0002e7), 12.0,
+                                                   0, 0, 0, 0, 0, 0, 0, 0)
+    pos = client.wait("LOCAL_POSITION_NED", 20.0, lambda m: abs(m.y - east_m) < 0.2 and abs(m.z + 12.0) < 0.2)
+    assert pos is not None and abs(pos.x) < 0.2
