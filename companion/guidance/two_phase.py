@@ -134,8 +134,12 @@ class TwoPhaseGuidance:
             if not path.closed and math.hypot(x - ex, y - ey) <= p.l1_m:
                 self._finished = True
                 return self._finished_output(state, s_proj, crosstrack)
-            # Farther than L1 from the path: steer at the projection.
-            a, _, _ = l1_command(x, y, course, V, px, py)
+            # Farther than L1 from the path: steer at the projection. (A closed path lying wholly
+            # inside the L1 circle has no look-ahead point either: there the projection is nearer
+            # than L1 and Park's distance is held at L1 to keep |a| <= 2 V^2 / L1.)
+            a, _, d = l1_command(x, y, course, V, px, py)
+            if d < p.l1_m:
+                a *= d / p.l1_m
             return GuidanceOutput(a_cmd_m_s2=a, phase="close_range", crosstrack_m=crosstrack,
                                   s_proj_m=s_proj, k1=self._k1, k2=self._k2,
                                   lookahead_xy_m=(px, py), extra={"no_lookahead": True})
