@@ -41,11 +41,17 @@ import re
 import struct
 from dataclasses import dataclass
 from pathlib import Path
+from collections import namedtuple
 from typing import Callable, Iterable, Iterator, NamedTuple
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from pymavlink.generator.mavcrc import x25crc
+
+try:  # the C implementation pymavlink uses when it is installed
+    from fastcrc.crc16 import mcrf4xx as _mcrf4xx
+except ImportError:  # pragma: no cover - fastcrc is optional
+    _mcrf4xx = None
 
 from companion.errors import LogError
 
@@ -125,6 +131,61 @@ class LogWarning:
         return {"offset": self.offset, "length": self.length, "reason": self.reason}
 
 
+def _crc16(buf: bytes) -> int:
+    """CRC-16/MCRF4XX (X.25) of ``buf``, as MAVLink computes it."""
+    if _mcrf4xx is not None:
+        return _mcrf4xx(buf, 0xFFFF)
+    return x25crc(bytearray(buf)).crc
+
+
+class _LightDecoder:
+    """Decode one message type into a named tuple, straight from pymavlink's own layout tables.
+
+    pymavlink's ``MAVLink.decode`` builds a full message object (several Python-level loops per
+    packet); replay needs millions of packets and only reads fields, so this decoder unpacks the
+    payload with the message's ``struct`` and maps the wire order to field names exactly as
+    pymavlink does (arrays as lists, char arrays as text up to the first NUL). The tuple has the
+    message's field names as attributes and ``get_type()``.
+    """
+
+    def __init__(self, cls):
+        self.unpacker = cls.unpacker
+        self.size = cls.unpacker.size
+        self.plan = []
+        for order in cls.orders:
+            length = cls.lengths[order]
+            tip = sum(cls.lengths[:order])
+            self.plan.append((tip, length))
+        base = namedtuple(f"{cls.msgname.title().replace('_', '')}Fields", cls.fieldnames)
+        msgname = cls.msgname
+        self.tuple_cls = type(base.__name__, (base,), {"__slots__": (), "get_type": lambda self: msgname})
+
+    def decode(self, payload: bytes):
+        if len(payload) < self.size:
+            payload = payload + bytes(self.size - len(payload))
+        t = self.unpacker.unpack_from(payload)
+        values = []
+        for tip, length in self.plan:
+            field = t[tip]
+            if isinstance(field, bytes):  # char arrays: text up to the first NUL, as pymavlink
+                values.append(field.split(b"\x00", 1)[0].decode("ascii", errors="replace"))
+            elif length == 1:
+                values.append(field)
+            else:
+                values.append(list(t[tip:tip + length]))
+        return self.tuple_cls(*values)
+
+
+_LIGHT: dict[int, _LightDecoder] = {}
+
+
+def _light_decoder(msg_id: int) -> _LightDecoder:
+    dec = _LIGHT.get(msg_id)
+    if dec is None:
+        dec = _LIGHT[msg_id] = _LightDecoder(mavlink.mavlink_map[msg_id])
+    return dec
+
+
 class _Reject(Exception):
     """Internal: the record at a position is not acceptable (message says why)."""
 
@@ -139,6 +200,8 @@ class TlogReader:
         Records of other ids are still checked (CRC) and yielded with ``msg=None``.
     on_warning : called with each :class:`LogWarning` as it is found (they are also collected in
         :attr:`warnings`).
+    light : decode into light named tuples (field attributes and ``get_type()`` only) instead of
+        pymavlink message objects: several times faster, for readers of many records (replay).
 
     Attributes
     ----------
@@ -154,8 +217,10 @@ class TlogReader:
         path: str | Path,
         decode_ids: Iterable[int] | None = None,
         on_warning: Callable[[LogWarning], None] | None = None,
+        light: bool = False,
     ):
         self.path = Path(path)
+        self.light = bool(light)
         try:
             self._data = self.path.read_bytes()
         except OSError as err:
@@ -232,6 +297,17 @@ class TlogReader:
         if cls is None:
             if not self._plausible_start(end, time_us):
                 raise _Reject(f"unknown message id {msg_id} not followed by a record")
+        elif decode and self.light:
+            sig = SIGNATURE_BYTES if (version == 2 and data[start + 2] & IFLAG_SIGNED) else 0
+            crc_end = end - sig
+            crc = data[crc_end - 2] | (data[crc_end - 1] << 8)
+            if _crc16(data[start + 1: crc_end - CRC_BYTES] + bytes((cls.crc_extra,))) != crc:
+                raise _Reject(f"bad checksum in message id {msg_id}")
+            header = HEADER_BYTES_V2 if version == 2 else HEADER_BYTES_V1
+            try:
+                msg = _light_decoder(msg_id).decode(data[start + header: crc_end - CRC_BYTES])
+            except struct.error as err:
+                raise _Reject(f"undecodable packet: {err}") from None
         elif decode:
             try:
                 msg = self._mav.decode(bytearray(data[start:end]))
@@ -241,10 +317,8 @@ class TlogReader:
         else:
             sig = SIGNATURE_BYTES if (version == 2 and data[start + 2] & IFLAG_SIGNED) else 0
             crc_end = end - sig
-            crc_buf = bytearray(data[start + 1: crc_end - CRC_BYTES])
-            crc_buf.append(cls.crc_extra)
             crc = data[crc_end - 2] | (data[crc_end - 1] << 8)
-            if x25crc(crc_buf).crc != crc:
+            if _crc16(data[start + 1: crc_end - CRC_BYTES] + bytes((cls.crc_extra,))) != crc:
                 raise _Reject(f"bad checksum in message id {msg_id}")
         record = LogRecord(time_us * 1e-6, pos, msg_id, src_system, src_component, msg, version)
         return record, end, time_us

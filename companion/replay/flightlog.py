@@ -121,7 +121,8 @@ def read_flight(
     Raises :class:`LogError` when the file has no setpoints to compare (or cannot be read).
     """
     path = Path(path)
-    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE}, on_warning=on_warning)
+    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE}, on_warning=on_warning,
+                        light=True)
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
     newest_yaw: dict[int, float] = {}

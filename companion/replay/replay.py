@@ -221,7 +221,8 @@ def replay_flight(
                 prev_course = recorded_prev
                 cmd = tk.debug_value("prev_course_cmd_rad")
                 prev_course_cmd = cmd if math.isfinite(cmd) else None
-            res = compute_tick(guidance, tk.tick, tk.t_s, tk.sample, tk.sample_age_s, config,
+            t_s = _unround_tick_time(guidance, tk) if companion_log else tk.t_s
+            res = compute_tick(guidance, tk.tick, t_s, tk.sample, tk.sample_age_s, config,
                                yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course,
                                prev_course_cmd_rad=prev_course_cmd)
             prev_course = res.course_rad
@@ -295,6 +296,28 @@ def replay_flight(
     return ReplayResult(flight, mission.name, tolerance, cols, first_divergence, per_phase, switches,
                         tracking, {"replay_s": time.perf_counter() - started}, mission.path,
                         rate_hz)
+
+
+def _unround_tick_time(guidance, tk: LoggedTick) -> float:
+    """The tick time to step the guidance with, resolving what the float32 record cannot.
+
+    The loop steps the guidance with a float64 ``t_s`` but records it as float32 (0.24 ms
+    resolution at one hour). The guidance re-optimises when ``t_s >= t_next``; when ``t_next``
+    lies within half a float32 step of the recorded time, the record cannot tell on which side
+    the flown time was, and the recorded ``reoptimised`` flag decides. Outside that band (every
+    other tick) the recorded time is used as is, and the flag is not consulted.
+    """
+    t = tk.t_s
+    t_next = getattr(guidance, "_t_next_opt", None)  # TwoPhaseGuidance's next re-optimisation time
+    flag = tk.debug_value("reoptimised")
+    if not isinstance(t_next, float) or not math.isfinite(t_next) or not math.isfinite(flag):
+        return t
+    band = 0.5 * float(np.spacing(np.float32(abs(t)))) * (1.0 + 1e-6)
+    if flag == 1.0 and t < t_next <= t + band:
+        return t_next
+    if flag == 0.0 and t - band <= t_next <= t:
+        return math.nextafter(t_next, -math.inf)
+    return t
 
 
 def _divergence(tk: LoggedTick, i: int, cols: dict, phase_logged: str, phase_replayed: str,

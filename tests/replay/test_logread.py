@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import random
 import struct
 from collections import Counter
@@ -225,3 +226,35 @@ def test_copter_log_stream_requests_and_arm_refusals_match_the_readme(copter_rec
     assert 40.0 < refusing_s < 48.0  # "refused for about 44 s"
     reasons = [r.msg.text for r in records if r.msg_type == "STATUSTEXT" and r.msg.text.startswith("Arm:")]
     assert len(reasons) >= len(refused)
+
+
+def _same(u, v) -> bool:
+    if isinstance(u, list):
+        return len(u) == len(v) and all(_same(p, q) for p, q in zip(u, v))
+    if isinstance(u, float) and math.isnan(u):
+        return isinstance(v, float) and math.isnan(v)
+    return u == v
+
+
+@pytest.mark.parametrize("source", ["copter", "mixed"])
+def test_light_decoding_gives_pymavlinks_field_values(source, tmp_path):
+    path = COPTER_LOG if source == "copter" else mixed_traffic_log().write(tmp_path / "mixed.tlog")
+    full = list(TlogReader(path))
+    light = list(TlogReader(path, light=True))
+    assert [r.offset for r in full] == [r.offset for r in light]
+    for a, b in zip(full, light):
+        assert b.msg.get_type() == a.msg.get_type()
+        for name in a.msg.get_fieldnames():
+            assert _same(getattr(a.msg, name), getattr(b.msg, name)), (a.msg_type, name)
+
+
+def test_light_decoding_still_rejects_a_bad_checksum(tmp_path):
+    b = mixed_traffic_log()
+    data = bytearray(b.to_bytes())
+    offsets = b.offsets()
+    data[offsets[7] + 8 + 12] ^= 0x01
+    path = tmp_path / "flipped.tlog"
+    path.write_bytes(bytes(data))
+    reader = TlogReader(path, light=True)
+    assert len(list(reader)) == len(b.records) - 1
+    assert [w.offset for w in reader.warnings] == [offsets[7]]
