@@ -19,6 +19,7 @@ import functools
 import math
 
 import numpy as np
+import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -220,3 +221,15 @@ def test_projection_follows_a_flown_offset_track(name, s0_frac, offset_frac, ste
         assert abs(diff) < 2e-3, (s, got, offset)
         hint = got
         s += step_m
+
+
+def test_closed_path_wholly_inside_the_l1_circle_keeps_the_bound():
+    """Circle of radius 30 m, vehicle 10 m from its centre, L1 = 40 m: every path point is within
+    L1, so there is no look-ahead point; the command steers at the projection (30, 0) with Park's
+    distance held at L1: a = 2 V^2 sin(eta) / L1 with eta = 0 - course."""
+    path = path_named("circle")
+    course = 1.0
+    g = TwoPhaseGuidance(path, GuidanceParams(method="fixed_l1", l1_m=40.0, speed_m_s=1.0,
+                                              midcourse_trigger="off"))
+    out = g.step(0.0, VehicleState(10.0, 0.0, course, 1.0))
+    assert out.a_cmd_m_s2 == pytest.approx(2.0 * math.sin(-course) / 40.0, rel=1e-6)

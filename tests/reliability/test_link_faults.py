@@ -75,12 +75,12 @@ def test_twenty_percent_loss_with_reordering_and_duplication_still_converges_ont
 def test_one_second_position_blackout_holds_then_resumes(tmp_path):
     port = free_udp_port()
     mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "6", "--stale-s", "0.3")
+    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "4.5", "--stale-s", "0.3")
     with FaultProxy(port) as proxy:
         mock = Mock(f"udpout:127.0.0.1:{proxy.port}")
         try:
             comp.wait_flying()
-            time.sleep(1.5)
+            time.sleep(1.0)
             t_black0, t_black1 = proxy.blackout(MSG_LOCAL_POSITION_NED, 1.0)
             rc, summary = comp.result()
         finally:
@@ -217,7 +217,7 @@ class Stranger:
 def test_second_autopilot_and_stranger_on_the_companion_port_are_ignored_and_never_answered(tmp_path):
     port = free_udp_port()
     mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "6")
+    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "5")
     mock = Mock(f"udpout:127.0.0.1:{port}")
     other = None
     stranger = Stranger(port)
