@@ -302,7 +302,7 @@ class MockAutopilot:
                                                      alt if math.isfinite(alt) else self.origin[2])
         target = (north if math.isfinite(lat) else None, east if math.isfinite(lon) else None,
                   down if math.isfinite(alt) else None)
-        if (target[0] is None) != (target[1] is None):
+        if (target[0] is None) != (target[1] is None) or abs(lat) > 90.0 or abs(lon) > 180.0:
             return fl.MAV_RESULT_DENIED
         change_mode = math.isfinite(p[1]) and int(p[1]) & 1
         return self.flight.reposition(target, bool(change_mode))
@@ -355,6 +355,9 @@ class MockAutopilot:
             # A message with values no real sender would use (e.g. inf in an int parameter).
             self.counters.drop("bad_value")
             self.log(f"dropped {mtype}: {err}")
+        except Exception as err:  # noqa: BLE001 - one bad message must not stop the autopilot
+            self.counters.drop("handler_error")
+            self.log(f"error handling {mtype}: {type(err).__name__}: {err}")
 
     def _on_command(self, link: Link, msg, src) -> None:
         if msg.get_type() == "COMMAND_INT":
@@ -419,13 +422,10 @@ class MockAutopilot:
             return self._reposition(p, int_frame)
         if command == 43000 and self.pers.vehicle == "plane" and not self.pers.is_px4:
             if f.mode.behaviour != "guided":
-                return f._refuse(fl.MAV_RESULT_FAILED, "GUIDED_CHANGE_SPEED: not in GUIDED")
+                return f.refuse(fl.MAV_RESULT_FAILED, "GUIDED_CHANGE_SPEED: not in GUIDED")
             return f.change_speed(p[0], p[1])
         if command == 43001 and self.pers.vehicle == "plane" and not self.pers.is_px4:
-            if f.mode.behaviour != "guided" or not math.isfinite(p[6]):
-                return fl.MAV_RESULT_FAILED
-            f._alt_target_m = p[6]
-            return fl.MAV_RESULT_ACCEPTED
+            return f.set_altitude_target(p[6])
         return fl.MAV_RESULT_UNSUPPORTED
 
     def _cmd_set_message_interval(self, link: Link, p: tuple) -> int:
@@ -468,6 +468,9 @@ class MockAutopilot:
         """SET_POSITION_TARGET_GLOBAL_INT: the position converted to local NED, the rest as the local message."""
         frame = msg.coordinate_frame
         if frame not in (5, 6, 11):  # GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT, GLOBAL_TERRAIN_ALT_INT
+            return
+        if abs(msg.lat_int) > 900000000 or abs(msg.lon_int) > 1800000000:
+            self.counters.drop("bad_value")
             return
         alt_amsl = msg.alt if frame == 5 else self.origin[2] + msg.alt  # home is on the ground at the origin
         north, east, down = self.local_from_geodetic(msg.lat_int * 1e-7, msg.lon_int * 1e-7, alt_amsl)

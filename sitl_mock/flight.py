@@ -70,6 +70,8 @@ TAKEOFF_DONE_M = 0.1
 RTL_ALT_PX4_M = 30.0
 RTL_ALT_ARDUPILOT_M = 15.0
 HOLD_SPEED_MAX_M_S = 5.0
+VERTICAL_SPEED_UP_MAX_M_S = 3.0  # PX4 MPC_Z_VEL_MAX_UP
+VERTICAL_SPEED_DOWN_MAX_M_S = 1.5  # PX4 MPC_Z_VEL_MAX_DN
 
 
 @dataclass
@@ -358,6 +360,17 @@ class FlightLogic:
                                  received_s=self.t_s, expires=False)
         return MAV_RESULT_ACCEPTED
 
+    def refuse(self, result: int, text: str) -> int:
+        """Refuse a command: queue its STATUSTEXT and return ``result``."""
+        return self._refuse(result, text)
+
+    def set_altitude_target(self, alt_m: float) -> int:
+        """ArduPlane MAV_CMD_GUIDED_CHANGE_ALTITUDE: the altitude (m above home) to hold in GUIDED."""
+        if self.mode.behaviour != "guided" or not math.isfinite(alt_m):
+            return MAV_RESULT_FAILED
+        self._alt_target_m = alt_m
+        return MAV_RESULT_ACCEPTED
+
     def change_speed(self, speed_type: float, speed_m_s: float) -> int:
         """MAV_CMD_DO_CHANGE_SPEED / MAV_CMD_GUIDED_CHANGE_SPEED: plane airspeed or copter/rover speed limit."""
         if not math.isfinite(speed_m_s) or speed_m_s < -2.0:
@@ -593,10 +606,13 @@ class FlightLogic:
                 vel[i] = s.vel_ned_m_s[i] + acc_i * max(tau, 1e-3)
             else:
                 vel[i] = kp * (sp.hold_ned_m[i] - s.pos_ned_m[i])
+        # Like the real position controllers, clamp what the setpoint asks to the vehicle's limits
+        # (MPC_XY_VEL_MAX / WPNAV_SPEED horizontally, MPC_Z_VEL_MAX_UP/DN vertically).
         h = math.hypot(vel[0], vel[1])
-        if h > self.speed_limit_m_s and any(v is not None for v in sp.pos_ned_m[:2]):
+        if h > self.speed_limit_m_s:
             vel[0] *= self.speed_limit_m_s / h
             vel[1] *= self.speed_limit_m_s / h
+        vel[2] = max(-VERTICAL_SPEED_UP_MAX_M_S, min(VERTICAL_SPEED_DOWN_MAX_M_S, vel[2]))
         if sp.yaw_rad is not None:
             yaw_rate = self._yaw_rate_to(sp.yaw_rad) + (sp.yaw_rate_rad_s or 0.0)
         elif sp.yaw_rate_rad_s is not None:

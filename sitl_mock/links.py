@@ -37,7 +37,7 @@ IFLAG_SIGNED = 0x01
 SIGNING_EPOCH_UNIX_S = 1420070400.0
 
 DROP_REASONS = ("garbage", "truncated", "bad_flags", "unknown_id", "bad_crc", "unsigned", "bad_signature",
-                "decode_error", "bad_value")
+                "decode_error", "bad_value", "handler_error")
 
 
 @dataclass(frozen=True)

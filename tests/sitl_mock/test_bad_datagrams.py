@@ -80,7 +80,7 @@ def test_each_kind_of_bad_datagram_is_counted_by_reason_and_moves_nothing(mock_f
     counts = mock.summary()
     assert mock.proc.returncode == 0
     expected = {"garbage": 50, "bad_crc": 40, "truncated": 30, "unknown_id": 20, "bad_flags": 10, "bad_value": 10,
-                "unsigned": 0, "bad_signature": 0, "decode_error": 0}
+                "unsigned": 0, "bad_signature": 0, "decode_error": 0, "handler_error": 0}
     assert {k: int(counts[k]) for k in expected} == expected
     assert int(counts["rx_dropped"]) == 160
 

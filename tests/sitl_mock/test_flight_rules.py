@@ -250,3 +250,13 @@ def test_ardupilot_reposition_needs_guided_or_the_change_mode_flag():
     assert f.mode.name == "GUIDED"
     advance(f, 12.0)
     assert f.model.state.pos_ned_m == pytest.approx([10.0, 0.0, -10.0], abs=0.05)
+
+
+def test_out_of_range_velocity_setpoints_are_clamped_to_the_vehicle_limits():
+    f = make("ardupilot", v_max_m_s=12.0)
+    f.set_mode(f.pers.mode_named("GUIDED"))
+    advance(f, 8.0, vel_setpoint(1e30, -1e30, -1e30))
+    v = f.model.state.vel_ned_m_s
+    assert math.hypot(v[0], v[1]) == pytest.approx(12.0, abs=1e-6)
+    assert v[2] == pytest.approx(-fl.VERTICAL_SPEED_UP_MAX_M_S, abs=1e-6)
+    assert all(math.isfinite(c) for c in f.model.state.pos_ned_m)

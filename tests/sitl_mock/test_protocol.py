@@ -235,6 +235,8 @@ def test_px4_do_reposition_as_command_int_goes_to_hold_at_the_geodetic_point(moc
     pos = client.wait("LOCAL_POSITION_NED", 20.0, lambda m: abs(m.x - north_m) < 0.2 and abs(m.z + 15.0) < 0.2)
     assert pos is not None and abs(pos.y) < 0.2
     assert client.wait("HEARTBEAT").custom_mode == HOLD
+    # A latitude no planet has is refused.
+    assert client.command(M.MAV_CMD_DO_REPOSITION, -1, 1, 0, NAN, 1000.0, 8.0, 415.0) == M.MAV_RESULT_DENIED
 
 
 def test_ardupilot_global_int_target_is_flown_in_guided(mock_factory):
