@@ -572,9 +572,11 @@ class FlightRunner:
         xt = f"{out.crosstrack_m:+6.2f}" if out is not None else "   n/a"
         a = f"{out.a_cmd_m_s2:+6.2f}" if out is not None else "  0.00"
         rej = sum(self.link.rejected.values())
+        hb_age = self.link.link_age_s()
+        link = "link ok" if hb_age < 1.5 else f"link quiet {hb_age:.1f} s"
         self.status.live(
             f"t {result.t_s:6.1f} s  {result.phase:<11} xtrack {xt} m  a_cmd {a} m/s2  "
-            f"tick {result.tick}  link ok  rejected {rej}"
+            f"{sched.current_rate_hz():5.1f} Hz  {link}  rejected {rej}"
         )
 
     # ------------------------------------------------------------------ entry point

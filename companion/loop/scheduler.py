@@ -159,6 +159,12 @@ class FixedRateScheduler:
             self._work_ms.append((self._work_timer() - self._work_started) * 1000.0)
             self._work_started = None
 
+    def current_rate_hz(self) -> float:
+        """Achieved tick rate so far (cheap; for live status)."""
+        if self._count < 2 or self._last_start is None or self._last_start <= self._first_start:
+            return math.nan
+        return (self._count - 1) / (self._last_start - self._first_start)
+
     def stats(self) -> SchedulerStats:
         span = (self._last_start - self._first_start) if self._count > 1 else 0.0
         rate = (self._count - 1) / span if span > 0 else math.nan

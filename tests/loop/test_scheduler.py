@@ -21,6 +21,7 @@ def test_fifty_hertz_deadlines_are_exact_multiples_of_the_period():
         s.done()
         assert t.deadline_s == pytest.approx(100.0 + k * 0.02, abs=1e-9)
     assert s.stats().rate_hz_achieved == pytest.approx(50.0)
+    assert s.current_rate_hz() == pytest.approx(50.0)
     assert s.stats().skipped == 0
 
 
