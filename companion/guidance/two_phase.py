@@ -23,8 +23,10 @@ Phases
     See :mod:`companion.guidance.midcourse` for the circles, the contact point and the switch.
 ``close_range``
     Constant L1 (``method="fixed_l1"``) or the corrector-aided command with online gains
-    (``method="corrector"``). When the vehicle is more than L1 from every path point ahead (no
-    look-ahead point) it steers at its projection with Park's command (distance = cross-track).
+    (``method="corrector"``). When no path point ahead leaves the L1 circle (the vehicle is more
+    than L1 from the path, or a closed path lies wholly inside the circle) it steers at its
+    projection with Park's command ``2 V^2 sin(eta) / max(|d|, L1)``, so that
+    ``|a| <= 2 V^2 / L1`` holds in every case.
 ``finished``
     On an open path, when the look-ahead point would run past the path end (the end is within
     L1 of the vehicle and no point ahead leaves the L1 circle): the paper's "while the
