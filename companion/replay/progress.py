@@ -1,4 +1,4 @@
-"""A progress bar over the bytes of a log, shown only when it helps.
+"""A progress bar over the bytes of a log (or the ticks of a replay), shown only when it helps.
 
 The bar goes to stderr, only when stderr is a terminal, and only once reading has taken more
 than a second (tqdm's ``delay``), so short logs and redirected output stay clean. tqdm is an
@@ -13,9 +13,9 @@ SHOW_AFTER_S = 1.0
 
 
 class ByteProgress:
-    """Context manager: ``update_to(offset)`` as the reader advances through ``total_bytes``."""
+    """Context manager: ``update_to(done)`` as the work advances through ``total`` units."""
 
-    def __init__(self, total_bytes: int, description: str, enabled: bool | None = None):
+    def __init__(self, total: int, description: str, enabled: bool | None = None, unit: str = "B"):
         if enabled is None:
             enabled = sys.stderr.isatty()
         self._bar = None
@@ -26,7 +26,7 @@ class ByteProgress:
             except ImportError:  # optional dependency
                 tqdm = None
             if tqdm is not None:
-                self._bar = tqdm(total=total_bytes, desc=description, unit="B", unit_scale=True,
+                self._bar = tqdm(total=total, desc=description, unit=unit, unit_scale=True,
                                  file=sys.stderr, delay=SHOW_AFTER_S, leave=False)
 
     def update_to(self, offset: int) -> None:

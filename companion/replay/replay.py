@@ -210,7 +210,7 @@ def replay_flight(
     prev_course_cmd = None
     s_hint = None
 
-    with ByteProgress(n, "replaying", enabled=progress) as bar:
+    with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
         for i, tk in enumerate(flight.ticks):
             if i % 1024 == 0:
                 bar.update_to(i)
