@@ -11,7 +11,7 @@ Kinds (each datagram is one of them, drawn with fixed weights from a seeded gene
 ``v1_valid``     a MAVLink 1 frame of a known message from a foreign system;
 ``hostile``      a valid, correctly framed message from the paired system whose fields are NaN,
                  infinite or out of range (target-specific: positions and attitudes for the
-                 companion, setpoints for the autopilot).
+                 companion; setpoints and commands for the autopilot).
 
 The fuzzer never sends a valid, plausible message from the paired system: that is
 indistinguishable from the real thing without signing (see ``test_signing.py``).
@@ -27,6 +27,18 @@ from mavframes import Encoder
 
 INF = math.inf
 NAN = math.nan
+
+# COMMAND_LONG (command, params) with values no real sender would use: arm/disarm with NaN, inf
+# or 0.5, a mode of NaN or 1e30, the position stream's interval NaN/inf, a message id of NaN.
+# Not NAV_TAKEOFF or DO_CHANGE_SPEED (there NaN means "default" or "unchanged": the command is
+# legitimate, e.g. PX4 switches to AUTO.TAKEOFF even in the air) and no negative interval (any
+# negative interval disables a stream, as on PX4): valid commands are not fuzz.
+HOSTILE_COMMANDS = [
+    (400, (NAN,)), (400, (INF, 21196.0)), (400, (0.5,)),
+    (176, (NAN, NAN, NAN)), (176, (1.0, INF, 0.0)), (176, (1.0, 1e30, 0.0)),
+    (511, (32.0, NAN)), (511, (32.0, INF)), (511, (NAN, 20000.0)),
+    (512, (NAN,)), (512, (INF,)),
+]
 
 KIND_WEIGHTS = {
     "random": 20, "bad_crc": 15, "truncated": 12, "wrong_length": 10, "unknown_id": 8, "bad_flags": 5,
@@ -80,7 +92,10 @@ class Fuzzer:
                 return self.own.local_position(r.randrange(1, 1 << 31), x=r.choice([2e5, -5e6, 1e9]))
             return self.own.attitude(r.randrange(1, 1 << 31), roll=r.uniform(-1, 1),
                                      yaw=r.choice([NAN, INF, 50.0, -1e6]))
-        choice = r.randrange(3)
+        choice = r.randrange(4)
+        if choice == 3:  # a command with non-finite or out-of-range parameters
+            command, params = r.choice(HOSTILE_COMMANDS)
+            return self.own.command_long(command, params)
         if choice == 0:  # velocity setpoint with a non-finite used field
             v = [r.uniform(-5, 5) for _ in range(4)]
             v[r.randrange(4)] = r.choice([NAN, INF, -INF])

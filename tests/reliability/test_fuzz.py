@@ -6,8 +6,9 @@ companion from the proxy's socket (its pinned peer, so the datagrams get past th
 and reach the parser and the field checks) and, one in ten, from a stranger's socket; to the mock
 from the proxy's autopilot-facing socket (its peer). Expected:
 
-- neither process crashes or stalls (the companion keeps its 50 Hz loop and never holds for
-  want of data; the mock keeps streaming and stays in OFFBOARD);
+- neither process crashes or stalls (both alive when the fuzzer is done; the companion kept its
+  50 Hz loop and never held for want of data; the mock kept streaming and stayed in OFFBOARD;
+  the companion then stops cleanly on SIGTERM);
 - every datagram is dropped and counted by reason, in the companion's final summary and status
   and in the mock's exit summary;
 - no setpoint is computed from a rejected message: every guidance tick's position is one of the
@@ -21,6 +22,7 @@ The CI run sends ``FUZZ_CI_PER_TARGET`` datagrams to each process; ``--run-slow`
 from __future__ import annotations
 
 import math
+import signal
 import socket
 import threading
 import time
@@ -87,7 +89,8 @@ def run_fuzz(tmp_path, per_target: int) -> None:
     port = free_udp_port()
     mission = write_mission(tmp_path)
     fuzz_s = per_target / RATE_PER_TARGET_HZ
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", f"{fuzz_s + 3:.0f}")
+    # Stopped by SIGTERM once the fuzzer is done; the duration limit is only a backstop.
+    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", f"{4 * fuzz_s + 30:.0f}")
     with FaultProxy(port) as proxy:
         mock = Mock(f"udpout:127.0.0.1:{proxy.port}")
         try:
@@ -99,17 +102,20 @@ def run_fuzz(tmp_path, per_target: int) -> None:
             send_s = time.monotonic() - t0
             assert not sender.is_alive(), "the fuzzer could not send in time"
             assert sender.error is None, sender.error
+            time.sleep(0.5)  # the last datagrams are handled
             alive_after = mock.p.poll() is None and comp.p.poll() is None
-            rc, summary = comp.result(timeout_s=fuzz_s + 60)
+            comp.signal(signal.SIGTERM)
+            rc, summary = comp.result(timeout_s=60)
         finally:
             mock_summary = mock.stop()
     # -------------------------------------------------------------- neither crashed nor stalled
-    assert alive_after, "a process died during the fuzzing"
-    assert rc == 0 and summary["exit"] == "max duration", comp.stderr[-3000:]
+    assert alive_after, ("a process died during the fuzzing:\n--- companion\n" + comp.stderr[-3000:]
+                         + "\n--- mock\n" + mock.stderr[-3000:])
+    assert rc == 1 and summary["exit"] == "SIGTERM", comp.stderr[-3000:]
     assert "Traceback" not in comp.stderr and "Traceback" not in mock.stderr
     assert summary["rate_hz_achieved"] >= 40.0, summary["rate_hz_achieved"]
     assert summary["hold_ticks"] == 0  # the real positions kept coming and were accepted
-    assert summary["ticks"] >= 40 * (fuzz_s + 2)
+    assert summary["ticks"] >= 40 * send_s
     # -------------------------------------------------------------- counted by reason
     rej = summary["link"]["rejected"]
     for reason in ("bad_crc", "bad_data", "unknown", "wrong_system", "wrong_address", "nan", "out_of_range"):
