@@ -119,6 +119,7 @@ def test_mavproxy_downloads_parameters_shows_and_switches_modes_arms_and_logs(tm
     try:
         assert wait_until(lambda: any("Mode RTL" in ln for ln in lines), 45.0), "".join(lines)
         assert wait_until(lambda: any("Received" in ln and "parameters" in ln for ln in lines), 15.0), "".join(lines)
+        time.sleep(1.5)  # MAVProxy writes its tlog from a queue: let the RTL heartbeats reach the file
     finally:
         proxy.send_signal(signal.SIGINT)
         try:
