@@ -572,6 +572,9 @@ class FlightRunner:
         xt = f"{out.crosstrack_m:+6.2f}" if out is not None else "   n/a"
         a = f"{out.a_cmd_m_s2:+6.2f}" if out is not None else "  0.00"
         rej = sum(self.link.rejected.values())
+        if rej:  # the split by reason, largest first (bad_data 12, nan 3, ...)
+            split = sorted(((n, k) for k, n in self.link.rejected.items() if n), reverse=True)
+            rej = f"{rej} ({', '.join(f'{k} {n}' for n, k in split)})"
         hb_age = self.link.link_age_s()
         link = "link ok" if hb_age < 1.5 else f"link quiet {hb_age:.1f} s"
         self.status.live(
