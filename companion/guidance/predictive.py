@@ -227,6 +227,9 @@ class PredictiveGuidance:
         self._s_hint: float | None = None
         self._look_m = float(self._candidates[len(self._candidates) // 2])
         self._plan = np.zeros(p.plan_segments)  # acceleration corrections, one per segment
+        # A correction larger than the vehicle's limit (or, with none, than the pursuit's largest
+        # command at the shortest look-ahead at 10 m/s) can only saturate: bound the plan there.
+        self._plan_bound = p.a_max_m_s2 if p.a_max_m_s2 < math.inf else 2.0 * 10.0**2 / p.l_min_m
         self._plan_t0 = 0.0
         self._a_hat = 0.0  # lateral acceleration the vehicle is flying, per the lag model
         self._last_cmd = 0.0
@@ -295,8 +298,10 @@ class PredictiveGuidance:
         """Choose the look-ahead distance and refine the correction plan; returns the plan's cost.
 
         1. One batched rollout holds every candidate look-ahead distance flown with the previous
-           plan (shifted to now), and the same plan perturbed segment by segment (forward
-           differences) at the previous look-ahead distance. The cheapest candidate is kept.
+           plan (shifted to now) and with no plan, and the shifted plan perturbed segment by
+           segment (forward differences) at the previous look-ahead distance. The cheapest
+           candidate is kept; if it is one without a plan, the plan restarts from zero (a plan
+           that has gone stale or saturated can always be dropped) and step 2 waits a period.
         2. Gauss-Newton on the plan: the perturbed rows give the Jacobian of the residuals, the
            damped normal equations a step, and a second batched rollout tries the full, half and
            quarter step with the chosen look-ahead; a step is kept only if it lowers the cost.
@@ -312,24 +317,31 @@ class PredictiveGuidance:
         m = plan.size
         eps = FD_STEP_M_S2
         refine = p.refine_iterations > 0
-        rows_look = np.concatenate([look, np.full(m, self._look_m)]) if refine else look
-        plans = np.tile(plan, (rows_look.size, 1))
+        # Rows: every candidate with the shifted plan, every candidate with no plan (so a plan
+        # that has gone stale or saturated can always be dropped), and the shifted plan perturbed
+        # segment by segment at the previous look-ahead (the Jacobian for step 2).
+        rows_look = np.concatenate([look, look, np.full(m if refine else 0, self._look_m)])
+        plans = np.zeros((rows_look.size, m))
+        plans[:k] = plan
         if refine:
-            plans[k:] += eps * np.eye(m)
+            plans[2 * k:] = plan + eps * np.eye(m)
         res = self.rollout(state, rows_look, plans)
-        costs = np.einsum("ij,ij->i", res[:k], res[:k])
+        costs = np.einsum("ij,ij->i", res[:2 * k], res[:2 * k])
         best = int(np.argmin(costs))
         previous = int(np.argmin(np.abs(look - self._look_m)))
-        self._look_m = float(look[best])
+        self._look_m = float(look[best % k])
         cost = float(costs[best])
+        if best >= k:  # dropping the plan is cheapest: start again from zero, refine next time
+            plan = np.zeros(m)
+            refine = False
         if refine:
             r0 = res[previous]
-            jac = (res[k:] - r0).T / eps
+            jac = (res[2 * k:] - r0).T / eps
             for iteration in range(p.refine_iterations):
                 jtj = jac.T @ jac
                 damping = 1e-6 + 1e-3 * np.trace(jtj) / m
                 step = np.linalg.solve(jtj + damping * np.eye(m), -jac.T @ r0)
-                trial = plan + np.outer(LINE_SEARCH, step)
+                trial = np.clip(plan + np.outer(LINE_SEARCH, step), -self._plan_bound, self._plan_bound)
                 rc = self.rollout(state, np.full(len(LINE_SEARCH), self._look_m), trial)
                 cc = np.einsum("ij,ij->i", rc, rc)
                 j = int(np.argmin(cc))
