@@ -28,6 +28,9 @@ def register(subparsers) -> None:
                         help="largest accepted yaw-rate difference, rad/s (default 0.01)")
     parser.add_argument("--tolerance-vel", type=float, default=0.05, metavar="M_S",
                         help="largest accepted velocity difference (norm of vx, vy, vz), m/s (default 0.05)")
+    parser.add_argument("--tolerance-attitude", type=float, default=0.01, metavar="RAD",
+                        help="fixed-wing (SET_ATTITUDE_TARGET) flights: largest accepted rotation between "
+                             "logged and replayed attitude, rad (default 0.01)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     parser.add_argument("--plot", metavar="OUT.png",
                         help="plot path vs track, cross-track error, a_cmd logged vs replayed, phases")
@@ -62,7 +65,7 @@ def _tolerance(args) -> Tolerance:
     from companion.errors import CompanionError
 
     try:
-        return Tolerance(args.tolerance_yaw_rate, args.tolerance_vel)
+        return Tolerance(args.tolerance_yaw_rate, args.tolerance_vel, args.tolerance_attitude)
     except ValueError as err:
         raise CompanionError(f"--tolerance: {err}") from None
 

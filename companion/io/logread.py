@@ -457,6 +457,12 @@ class PacketEncoder:
             int(time_boot_ms), target_system, target_component, coordinate_frame, type_mask,
             0.0, 0.0, 0.0, vx_m_s, vy_m_s, vz_m_s, 0.0, 0.0, 0.0, 0.0, yaw_rate_rad_s))
 
+    def attitude_target_packet(self, target_system: int, target_component: int, type_mask: int,
+                               q: tuple[float, float, float, float], thrust: float,
+                               time_boot_ms: int = 0) -> bytes:
+        return self._pack(self._mav.set_attitude_target_encode(
+            int(time_boot_ms), target_system, target_component, type_mask, list(q), 0.0, 0.0, 0.0, thrust))
+
     def debug_float_array_packet(self, name: str, array_id: int, time_usec: int, data) -> bytes:
         values = [float(v) for v in data][:58]
         values += [math.nan] * (58 - len(values))

@@ -39,6 +39,7 @@ ID_LPN = MSG_ID["LOCAL_POSITION_NED"]
 ID_SPT = MSG_ID["SET_POSITION_TARGET_LOCAL_NED"]
 ID_DFA = MSG_ID["DEBUG_FLOAT_ARRAY"]
 ID_ATTITUDE = MSG_ID["ATTITUDE"]
+ID_SAT = MSG_ID["SET_ATTITUDE_TARGET"]
 PROGRESS_EVERY_RECORDS = 4096
 N_DEBUG = len(DEBUG_FIELDS)
 DEBUG_INDEX = {name: i for i, name in enumerate(DEBUG_FIELDS)}
@@ -56,6 +57,16 @@ class LoggedSetpoint:
     coordinate_frame: int
 
 
+@dataclass(frozen=True)
+class LoggedAttitude:
+    """The fields of one logged SET_ATTITUDE_TARGET (fixed-wing output): quaternion w, x, y, z
+    (NED body) and thrust."""
+
+    q: tuple[float, float, float, float]
+    thrust: float
+    type_mask: int
+
+
 @dataclass
 class LoggedTick:
     """Everything known about one tick of the logged flight.
@@ -70,7 +81,7 @@ class LoggedTick:
     sample: PositionSample | None
     sample_age_s: float
     yaw_ned_rad: float | None
-    setpoint: LoggedSetpoint | None
+    setpoint: LoggedSetpoint | LoggedAttitude | None
     debug: list[float] | None = None
     sample_reconstructed: bool = False
 
@@ -121,7 +132,7 @@ def read_flight(
     Raises :class:`LogError` when the file has no setpoints to compare (or cannot be read).
     """
     path = Path(path)
-    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE}, on_warning=on_warning,
+    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT}, on_warning=on_warning,
                         light=True)
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
@@ -164,6 +175,10 @@ def read_flight(
                         t_s=(sample.time_boot_ms - first_boot_ms) / 1000.0, sample=sample,
                         sample_age_s=max(0.0, rec.time_s - sample_time),
                         yaw_ned_rad=newest_yaw.get(msg.target_system), setpoint=sp))
+            elif mid == ID_SAT:
+                sender = (rec.src_system, rec.src_component)
+                events.setdefault(sender, []).append(
+                    (rec.time_s, LoggedAttitude(tuple(msg.q), msg.thrust, msg.type_mask), msg.target_system))
             elif mid == ID_DFA:
                 name = msg.name.decode("ascii", "replace") if isinstance(msg.name, bytes) else str(msg.name)
                 if name != GUIDANCE_ARRAY_NAME:
@@ -243,7 +258,8 @@ def _pair_setpoints(events: dict[tuple[int, int], list[tuple]], rate_hz: float) 
                 setpoints += 1
                 continue
             nxt = seq[i + 1] if i + 1 < len(seq) else None
-            if nxt is not None and isinstance(nxt[1], LoggedSetpoint) and nxt[0] - time_s <= max_gap_s:
+            if nxt is not None and isinstance(nxt[1], (LoggedSetpoint, LoggedAttitude)) \
+                    and nxt[0] - time_s <= max_gap_s:
                 item.setpoint = nxt[1]
                 paired += 1
             else:

@@ -39,10 +39,18 @@ import numpy as np
 
 from companion.errors import LogError
 from companion.io.logread import LogWarning
-from companion.io.setpoints import VelocitySetpoint
+from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.loop.tick import TickConfig, compute_tick
 from companion.mission import Mission, load_mission
-from companion.replay.flightlog import DEBUG_INDEX, LoggedFlight, LoggedTick, phase_name, read_flight
+from companion.replay.flightlog import (
+    DEBUG_INDEX,
+    LoggedAttitude,
+    LoggedFlight,
+    LoggedSetpoint,
+    LoggedTick,
+    phase_name,
+    read_flight,
+)
 from companion.replay.progress import ByteProgress
 from companion.sim.metrics import tracking_metrics
 
@@ -55,9 +63,10 @@ class Tolerance:
 
     yaw_rate_rad_s: float = 0.01
     vel_m_s: float = 0.05
+    attitude_rad: float = 0.01  # fixed-wing output: rotation between logged and replayed attitude
 
     def __post_init__(self) -> None:
-        for name in ("yaw_rate_rad_s", "vel_m_s"):
+        for name in ("yaw_rate_rad_s", "vel_m_s", "attitude_rad"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -103,7 +112,8 @@ class ReplayResult:
             "steps_compared": self.steps_compared,
             "ticks": int(self.series["t_s"].size),
             "within_tolerance": self.within_tolerance,
-            "tolerance": {"yaw_rate_rad_s": self.tolerance.yaw_rate_rad_s, "vel_m_s": self.tolerance.vel_m_s},
+            "tolerance": {"yaw_rate_rad_s": self.tolerance.yaw_rate_rad_s, "vel_m_s": self.tolerance.vel_m_s,
+                          "attitude_rad": self.tolerance.attitude_rad},
             "first_divergence": self.first_divergence,
             "per_phase": self.per_phase,
             "phase_switches": self.phase_switches,
@@ -134,13 +144,23 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
                    "pass --mission M.yaml")
 
 
-def tick_config_for(mission: Mission, rate_hz: float) -> TickConfig:
-    """The per-tick settings of a flight of this mission at ``rate_hz``.
+def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity") -> TickConfig:
+    """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
+    (``"velocity"`` or ``"attitude"``).
 
     The live runner adds ``--stale-s`` and ``--max-bank-deg`` from its command line; the log does
     not record them, so replay uses their defaults (0.3 s, 35 deg).
     """
-    return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m)
+    return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
+                      output=output)
+
+
+def flight_output(flight: LoggedFlight) -> str:
+    """``"attitude"`` when the flight's paired setpoints are mostly SET_ATTITUDE_TARGET, else
+    ``"velocity"`` (the runner picks it from the vehicle type; the log shows what was sent)."""
+    attitude = sum(isinstance(tk.setpoint, LoggedAttitude) for tk in flight.ticks)
+    velocity = sum(isinstance(tk.setpoint, LoggedSetpoint) for tk in flight.ticks)
+    return "attitude" if attitude > velocity else "velocity"
 
 
 def default_guidance(mission: Mission, rate_hz: float):
@@ -170,7 +190,8 @@ def flight_rate_hz(flight: LoggedFlight, mission: Mission) -> float:
 _SERIES = ("t_s", "tick", "x_enu_m", "y_enu_m", "crosstrack_m", "a_logged_m_s2", "a_replayed_m_s2",
            "yaw_rate_logged_rad_s", "yaw_rate_replayed_rad_s", "vx_logged_m_s", "vy_logged_m_s",
            "vz_logged_m_s", "vx_replayed_m_s", "vy_replayed_m_s", "vz_replayed_m_s",
-           "k1_logged", "k2_logged", "k1_replayed", "k2_replayed", "yaw_rate_diff_rad_s", "vel_diff_m_s")
+           "k1_logged", "k2_logged", "k1_replayed", "k2_replayed", "yaw_rate_diff_rad_s", "vel_diff_m_s",
+           "roll_logged_rad", "roll_replayed_rad", "attitude_diff_rad")
 
 
 def _absdiff(a: float, b: float) -> float:
@@ -195,7 +216,7 @@ def replay_flight(
     """
     started = time.perf_counter()
     rate_hz = config.rate_hz if config is not None else flight_rate_hz(flight, mission)
-    config = config or tick_config_for(mission, rate_hz)
+    config = config or tick_config_for(mission, rate_hz, flight_output(flight))
     guidance = guidance_factory(mission, rate_hz)
     path = mission.path
     companion_log = flight.kind == "companion"
@@ -260,30 +281,39 @@ def replay_flight(
                 if logged is not None:
                     speed_h = math.hypot(logged.vx_ned_m_s, logged.vy_ned_m_s)
                     cols["a_logged_m_s2"][i] = -logged.yaw_rate_ned_rad_s * speed_h
-            if logged is None or not isinstance(sp, VelocitySetpoint):
+            if logged is None:
                 continue
-            cols["yaw_rate_logged_rad_s"][i] = logged.yaw_rate_ned_rad_s
-            cols["vx_logged_m_s"][i] = logged.vx_ned_m_s
-            cols["vy_logged_m_s"][i] = logged.vy_ned_m_s
-            cols["vz_logged_m_s"][i] = logged.vz_ned_m_s
-            d_yaw = _absdiff(logged.yaw_rate_ned_rad_s, sp.yaw_rate_ned_rad_s)
-            d_vel = math.sqrt(_absdiff(logged.vx_ned_m_s, sp.vx_ned_m_s) ** 2
-                              + _absdiff(logged.vy_ned_m_s, sp.vy_ned_m_s) ** 2
-                              + _absdiff(logged.vz_ned_m_s, sp.vz_ned_m_s) ** 2)
-            cols["yaw_rate_diff_rad_s"][i] = d_yaw
-            cols["vel_diff_m_s"][i] = d_vel
-            compared[i] = True
-            if first_divergence is None:
-                reasons = []
+            reasons = []
+            if isinstance(logged, LoggedSetpoint) and isinstance(sp, VelocitySetpoint):
+                cols["yaw_rate_logged_rad_s"][i] = logged.yaw_rate_ned_rad_s
+                cols["vx_logged_m_s"][i] = logged.vx_ned_m_s
+                cols["vy_logged_m_s"][i] = logged.vy_ned_m_s
+                cols["vz_logged_m_s"][i] = logged.vz_ned_m_s
+                d_yaw = _absdiff(logged.yaw_rate_ned_rad_s, sp.yaw_rate_ned_rad_s)
+                d_vel = math.sqrt(_absdiff(logged.vx_ned_m_s, sp.vx_ned_m_s) ** 2
+                                  + _absdiff(logged.vy_ned_m_s, sp.vy_ned_m_s) ** 2
+                                  + _absdiff(logged.vz_ned_m_s, sp.vz_ned_m_s) ** 2)
+                cols["yaw_rate_diff_rad_s"][i] = d_yaw
+                cols["vel_diff_m_s"][i] = d_vel
                 if not d_yaw <= tolerance.yaw_rate_rad_s:
                     reasons.append("yaw_rate")
                 if not d_vel <= tolerance.vel_m_s:
                     reasons.append("velocity")
-                if companion_log and phase_logged[-1] != res.phase:
-                    reasons.append("phase")
-                if reasons:
-                    first_divergence = _divergence(tk, i, cols, phase_logged[-1], res.phase, reasons,
-                                                   companion_log)
+            elif isinstance(logged, LoggedAttitude) and isinstance(sp, AttitudeSetpoint):
+                cols["roll_logged_rad"][i] = roll_from_quaternion(logged.q)
+                cols["roll_replayed_rad"][i] = sp.roll_ned_rad
+                d_att = rotation_between_rad(logged.q, sp.q)
+                cols["attitude_diff_rad"][i] = d_att
+                if not d_att <= tolerance.attitude_rad:
+                    reasons.append("attitude")
+            else:
+                reasons.append("setpoint_type")  # e.g. velocity logged, attitude replayed
+            compared[i] = True
+            if companion_log and phase_logged[-1] != res.phase:
+                reasons.append("phase")
+            if reasons and first_divergence is None:
+                first_divergence = _divergence(tk, i, cols, phase_logged[-1], res.phase, reasons,
+                                               companion_log)
         bar.update_to(n)
 
     cols["compared"] = compared
@@ -329,6 +359,7 @@ def _divergence(tk: LoggedTick, i: int, cols: dict, phase_logged: str, phase_rep
             "vz_m_s": cols[f"vz_{which}_m_s"][i],
             "yaw_rate_rad_s": cols[f"yaw_rate_{which}_rad_s"][i],
             "a_cmd_m_s2": cols[f"a_{which}_m_s2"][i],
+            "roll_rad": cols[f"roll_{which}_rad"][i],
         }
         if companion_log or which == "replayed":
             out.update(phase=phase, k1=cols[f"k1_{which}"][i], k2=cols[f"k2_{which}"][i])
@@ -340,9 +371,36 @@ def _divergence(tk: LoggedTick, i: int, cols: dict, phase_logged: str, phase_rep
         "reasons": reasons,
         "yaw_rate_diff_rad_s": _json_float(cols["yaw_rate_diff_rad_s"][i]),
         "vel_diff_m_s": _json_float(cols["vel_diff_m_s"][i]),
+        "attitude_diff_rad": _json_float(cols["attitude_diff_rad"][i]),
         "logged": side("logged", phase_logged),
         "replayed": side("replayed", phase_replayed),
     }
+
+
+def roll_from_quaternion(q) -> float:
+    """Roll (NED, right wing down positive) of an attitude quaternion ``(w, x, y, z)``."""
+    w, x, y, z = q
+    return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+
+
+def rotation_between_rad(q1, q2) -> float:
+    """Angle of the rotation between two attitude quaternions, in ``[0, pi]`` (sign-insensitive).
+
+    The unit quaternions of a rotation by ``theta`` lie ``theta / 2`` apart on the 4-sphere, and
+    ``atan2(|q1 - s q2|, |q1 + s q2|)`` (``s`` the sign of their dot product) is half of that
+    separation, so the rotation is ``4 atan2(...)``: well conditioned for small angles, unlike
+    ``2 acos(|q1 . q2|)``.
+
+    >>> round(rotation_between_rad((1, 0, 0, 0), (math.cos(0.05), math.sin(0.05), 0, 0)), 12)
+    0.1
+    """
+    a = np.asarray(q1, dtype=float)
+    b = np.asarray(q2, dtype=float)
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    if float(np.dot(a, b)) < 0.0:
+        b = -b
+    return float(4.0 * math.atan2(np.linalg.norm(a - b), np.linalg.norm(a + b)))
 
 
 def _json_float(value) -> float | None:
@@ -355,19 +413,17 @@ def _per_phase(cols: dict, phases: list[str]) -> dict[str, dict]:
     out: dict[str, dict] = {}
     for name in dict.fromkeys(phases):
         mask = (names == name) & cols["compared"]
-        d_yaw = cols["yaw_rate_diff_rad_s"][mask]
-        d_vel = cols["vel_diff_m_s"][mask]
-        if d_yaw.size == 0:
-            out[str(name)] = {"steps": 0, "yaw_rate_max_rad_s": None, "yaw_rate_rms_rad_s": None,
-                              "vel_max_m_s": None, "vel_rms_m_s": None}
-            continue
-        out[str(name)] = {
-            "steps": int(d_yaw.size),
-            "yaw_rate_max_rad_s": _json_float(np.max(d_yaw)),
-            "yaw_rate_rms_rad_s": _json_float(np.sqrt(np.mean(d_yaw * d_yaw))),
-            "vel_max_m_s": _json_float(np.max(d_vel)),
-            "vel_rms_m_s": _json_float(np.sqrt(np.mean(d_vel * d_vel))),
-        }
+        entry = {"steps": int(np.count_nonzero(mask))}
+        for column, key in (("yaw_rate_diff_rad_s", "yaw_rate"), ("vel_diff_m_s", "vel"),
+                            ("attitude_diff_rad", "attitude")):
+            unit = column[column.index("_diff") + 5:]
+            values = cols[column][mask]
+            values = values[np.isfinite(values) | np.isinf(values)]
+            if key == "attitude" and values.size == 0:
+                continue  # velocity output: no attitude columns
+            entry[f"{key}_max{unit}"] = _json_float(np.max(values)) if values.size else None
+            entry[f"{key}_rms{unit}"] = _json_float(np.sqrt(np.mean(values * values))) if values.size else None
+        out[str(name)] = entry
     return out
 
 
@@ -411,6 +467,6 @@ def replay_log(
     result.timing_s["read_s"] = read_s
     result.timing_s["total_s"] = time.perf_counter() - started
     if result.steps_compared == 0:
-        raise LogError(f"{tlog}: none of the {len(flight.ticks)} ticks has a logged velocity setpoint "
-                       "to compare with (SET_ATTITUDE_TARGET flights are not compared)")
+        raise LogError(f"{tlog}: none of the {len(flight.ticks)} ticks has a logged setpoint to compare "
+                       "with")
     return result

@@ -15,7 +15,8 @@ CSV_COLUMNS = (
     "a_logged_m_s2", "a_replayed_m_s2", "yaw_rate_logged_rad_s", "yaw_rate_replayed_rad_s",
     "vx_logged_m_s", "vy_logged_m_s", "vz_logged_m_s", "vx_replayed_m_s", "vy_replayed_m_s",
     "vz_replayed_m_s", "k1_logged", "k1_replayed", "k2_logged", "k2_replayed",
-    "yaw_rate_diff_rad_s", "vel_diff_m_s", "compared",
+    "yaw_rate_diff_rad_s", "vel_diff_m_s", "roll_logged_rad", "roll_replayed_rad", "attitude_diff_rad",
+    "compared",
 )
 
 
@@ -57,16 +58,23 @@ def format_report(result) -> str:
     if j["warnings"]:
         lines.append(f"log damage: {len(j['warnings'])} unreadable stretches (see warnings above)")
     verdict = "WITHIN tolerance" if j["within_tolerance"] else "NOT within tolerance"
+    attitude = any("attitude_max_rad" in p for p in j["per_phase"].values())
     lines += [
-        f"tolerance: yaw rate {tol['yaw_rate_rad_s']} rad/s, velocity {tol['vel_m_s']} m/s -> {verdict}",
+        f"tolerance: yaw rate {tol['yaw_rate_rad_s']} rad/s, velocity {tol['vel_m_s']} m/s, "
+        f"attitude {tol['attitude_rad']} rad -> {verdict}",
         "",
         "difference logged vs replayed, per " + ("logged" if j["kind"] == "companion" else "replayed") + " phase:",
-        f"  {'phase':<12} {'steps':>7} {'yaw max':>10} {'yaw rms':>10} {'vel max':>10} {'vel rms':>10}",
-        f"  {'':<12} {'':>7} {'rad/s':>10} {'rad/s':>10} {'m/s':>10} {'m/s':>10}",
+        f"  {'phase':<12} {'steps':>7} {'yaw max':>10} {'yaw rms':>10} {'vel max':>10} {'vel rms':>10}"
+        + (f" {'att max':>10} {'att rms':>10}" if attitude else ""),
+        f"  {'':<12} {'':>7} {'rad/s':>10} {'rad/s':>10} {'m/s':>10} {'m/s':>10}"
+        + (f" {'rad':>10} {'rad':>10}" if attitude else ""),
     ]
     for name, p in j["per_phase"].items():
-        lines.append(f"  {name:<12} {p['steps']:>7} {_f(p['yaw_rate_max_rad_s'])} {_f(p['yaw_rate_rms_rad_s'])} "
-                     f"{_f(p['vel_max_m_s'])} {_f(p['vel_rms_m_s'])}")
+        line = (f"  {name:<12} {p['steps']:>7} {_f(p['yaw_rate_max_rad_s'])} {_f(p['yaw_rate_rms_rad_s'])} "
+                f"{_f(p['vel_max_m_s'])} {_f(p['vel_rms_m_s'])}")
+        if attitude:
+            line += f" {_f(p.get('attitude_max_rad'))} {_f(p.get('attitude_rms_rad'))}"
+        lines.append(line)
     fd = j["first_divergence"]
     lines.append("")
     if fd is None:
@@ -74,10 +82,12 @@ def format_report(result) -> str:
     else:
         lines.append(f"first divergence: tick {fd['tick']} at t = {fd['time_s']:.3f} s "
                      f"({', '.join(fd['reasons'])}; yaw-rate diff {_f(fd['yaw_rate_diff_rad_s'], 5, 1).strip()} rad/s, "
-                     f"velocity diff {_f(fd['vel_diff_m_s'], 4, 1).strip()} m/s)")
+                     f"velocity diff {_f(fd['vel_diff_m_s'], 4, 1).strip()} m/s"
+                     + (f", attitude diff {fd['attitude_diff_rad']:.5f} rad" if fd["attitude_diff_rad"] is not None else "")
+                     + ")")
         lines.append(f"  {'':<16} {'logged':>12} {'replayed':>12}")
-        for key in ("vx_m_s", "vy_m_s", "vz_m_s", "yaw_rate_rad_s", "a_cmd_m_s2", "phase", "k1", "k2"):
-            if key in fd["logged"] or key in fd["replayed"]:
+        for key in ("vx_m_s", "vy_m_s", "vz_m_s", "yaw_rate_rad_s", "roll_rad", "a_cmd_m_s2", "phase", "k1", "k2"):
+            if fd["logged"].get(key) is not None or fd["replayed"].get(key) is not None:
                 lines.append(f"  {key:<16} {_f(fd['logged'].get(key), 5, 12)} {_f(fd['replayed'].get(key), 5, 12)}")
     lines += ["", "phase switches (tick time, s):"]
     for side in ("logged", "replayed"):

@@ -42,6 +42,7 @@ MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 MAV_AUTOPILOT_INVALID = 8
 GUIDED_ARMED_BASE_MODE = 1 | 128  # custom mode enabled, armed
 COPTER_GUIDED = 4
+G_M_S2 = 9.80665
 
 #: A closed racetrack (two 120 m straights, two 40 m radius half-circles) flown at 5 m/s with
 #: the corrector-aided law: the default flight of :func:`replay_throughput`.
@@ -79,6 +80,7 @@ def write_synthetic_flight(
     rate_hz: float = 50.0,
     start_offset_m: tuple[float, float] = (0.0, 3.0),
     vehicle_lag_s: float = 0.2,
+    output: str = "velocity",
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -89,6 +91,8 @@ def write_synthetic_flight(
     duration_s, rate_hz : length of the flight and the loop rate.
     start_offset_m : the vehicle's start, ENU, relative to the path's first point.
     vehicle_lag_s : time constant of the vehicle's velocity response (0: immediate).
+    output : ``"velocity"`` (SET_POSITION_TARGET_LOCAL_NED, copter) or ``"attitude"``
+        (SET_ATTITUDE_TARGET, fixed wing: the vehicle turns at ``g tan(bank) / V``).
 
     Returns
     -------
@@ -102,7 +106,8 @@ def write_synthetic_flight(
     tlog_path = Path(tlog_path)
     Path(str(tlog_path) + ".mission.yaml").write_text(mission.source_text, encoding="utf-8")
     guidance = make_guidance(mission, rate_hz)
-    config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m)
+    config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
+                        output=output)
     dt = 1.0 / rate_hz
     autopilot = PacketEncoder(1, 1)
     companion = PacketEncoder(1, 191)
@@ -144,13 +149,21 @@ def write_synthetic_flight(
             sp = res.setpoint
             # as the runner: the tick's guidance row, then its setpoint
             tlog.write(companion.debug_float_array_packet("guidance", k, boot_ms * 1000, res.debug), unix)
-            tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
-                                                          sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
-                                                          sp.yaw_rate_ned_rad_s), unix + 20e-6)
-            # the vehicle follows the commanded horizontal velocity with a first-order lag
-            cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
-            ve += alpha * (cmd_ve - ve)
-            vn += alpha * (cmd_vn - vn)
+            if output == "attitude":
+                tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), unix + 20e-6)
+                # coordinated turn at the commanded bank (NED roll: right wing down positive)
+                speed = math.hypot(ve, vn)
+                omega = G_M_S2 * math.tan(-sp.roll_ned_rad) / speed if speed > 0 else 0.0
+                course = math.atan2(vn, ve) + omega * dt
+                ve, vn = speed * math.cos(course), speed * math.sin(course)
+            else:
+                tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
+                                                              sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
+                                                              sp.yaw_rate_ned_rad_s), unix + 20e-6)
+                # the vehicle follows the commanded horizontal velocity with a first-order lag
+                cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
+                ve += alpha * (cmd_ve - ve)
+                vn += alpha * (cmd_vn - vn)
             x += ve * dt
             y += vn * dt
         records = tlog.records

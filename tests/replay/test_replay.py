@@ -225,3 +225,42 @@ def test_copter_log_crosstrack_is_a_few_decimetres_rms(copter_replay):
     assert copter_replay.tracking["d_rms_m"] == pytest.approx(0.4, abs=0.05)
     assert 0.2 < math.sqrt(np.mean(half * half)) < 0.45
     assert copter_replay.tracking["d_rms_m"] == pytest.approx(math.sqrt(np.mean(d * d)), rel=1e-12)
+
+
+SAT_ID = 82
+SAT_QX_OFFSET = 10 + 4 + 4  # header, time_boot_ms, q[0] (w)
+
+
+@pytest.fixture(scope="module")
+def plane_flight(tmp_path_factory) -> Path:
+    """A 12 s fixed-wing flight: SET_ATTITUDE_TARGET setpoints (bank for a coordinated turn)."""
+    path = tmp_path_factory.mktemp("plane") / "plane.tlog"
+    write_synthetic_flight(path, duration_s=12.0, output="attitude")
+    return path
+
+
+def test_fixed_wing_log_replays_within_tolerance_by_attitude(plane_flight):
+    result = replay_log(plane_flight)
+    j = result.to_json()
+    assert j["within_tolerance"] is True and j["steps_compared"] == 600
+    p = j["per_phase"]["close_range"]
+    assert p["attitude_max_rad"] <= 0.01 and p["vel_max_m_s"] is None
+    # the replayed roll is the coordinated-turn bank of the replayed a_cmd: phi = atan(a / g), NED sign
+    s = result.series
+    expected = -np.arctan(s["a_replayed_m_s2"] / 9.80665)
+    limit = math.radians(35.0)
+    assert np.allclose(s["roll_replayed_rad"], np.clip(expected, -limit, limit), atol=1e-9)
+
+
+def test_fixed_wing_altered_attitude_is_caught_at_that_tick(plane_flight, tmp_path):
+    tampered = copy_flight(plane_flight, tmp_path / "plane.tlog")
+    data = bytearray(tampered.read_bytes())
+    victim = 345
+    at, length = companion_packets(bytes(data), SAT_ID)[victim]
+    edit_float(data, at, length, SAT_QX_OFFSET, 0.05)  # about 0.1 rad more roll
+    tampered.write_bytes(bytes(data))
+    result = replay_log(tampered)
+    fd = result.first_divergence
+    assert result.exit_code == 1
+    assert fd["tick"] == victim and fd["reasons"] == ["attitude"]
+    assert 0.05 < fd["attitude_diff_rad"] < 0.15
