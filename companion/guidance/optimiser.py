@@ -14,6 +14,10 @@ and ``k1 = 0`` (the corrector alone), plus the previous optimum (warm start). A 
 batch around the best candidate refines it. A ratio maps back to bounded gains: ``k1 = k1_max,
 k2 = rho k1_max`` while that stays within ``k2_max``, else ``k2 = k2_max, k1 = k2_max / rho``.
 
+With ``params.rollout_tau_s > 0`` the rollouts also model a first-order inner loop of that
+time constant (started from the guidance's estimate of the achieved acceleration), so the gains
+are chosen for the vehicle that will fly them; 0 (default) is the paper's ideal inner loop.
+
 The rollouts of all candidates run at once (numpy arrays over candidates) with a rollout step
 of at least the guidance tick and at most ``window / ROLLOUT_MAX_STEPS``; projection and
 look-ahead points are tracked by Newton steps from the previous ones, which is exact enough over
@@ -80,9 +84,12 @@ class GainOptimiser:
         return d_online / max(speed_m_s, 1e-3)
 
     def optimise(self, x_m: float, y_m: float, course_rad: float, speed_m_s: float,
-                 s_proj_m: float, s_look_m: float, warm_ratio: float | None = None
-                 ) -> tuple[float, float, float]:
+                 s_proj_m: float, s_look_m: float, warm_ratio: float | None = None,
+                 a_achieved_m_s2: float = 0.0) -> tuple[float, float, float]:
         """Best gains for the coming window.
+
+        ``a_achieved_m_s2`` is the inner loop's current lateral acceleration, the start of the
+        rollouts' first-order lag when ``params.rollout_tau_s > 0`` (unused otherwise).
 
         Returns
         -------
@@ -95,7 +102,8 @@ class GainOptimiser:
         if warm_ratio is not None and 0.0 < warm_ratio < math.inf:
             finite.append(warm_ratio)
         rhos = np.array([0.0] + finite + [math.inf])
-        cost = self._rollout_cost(rhos, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window)
+        cost = self._rollout_cost(rhos, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window,
+                                  a_achieved_m_s2)
         best = int(np.argmin(cost))
         best_rho, best_cost = float(rhos[best]), float(cost[best])
         # Batch 2: refine around the best finite ratio (or next to the pure end that won).
@@ -107,7 +115,8 @@ class GainOptimiser:
             centre = math.log10(best_rho)
         offsets = np.linspace(-self._step_log10, self._step_log10, RHO_FINE_COUNT + 2)[1:-1]
         fine = 10.0 ** (centre + offsets)
-        cost2 = self._rollout_cost(fine, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window)
+        cost2 = self._rollout_cost(fine, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window,
+                                   a_achieved_m_s2)
         j = int(np.argmin(cost2))
         if cost2[j] < best_cost:
             best_rho = float(fine[j])
@@ -115,7 +124,8 @@ class GainOptimiser:
         return k1, k2, window
 
     def _rollout_cost(self, rhos: np.ndarray, x_m: float, y_m: float, course_rad: float,
-                      speed_m_s: float, s_proj_m: float, s_look_m: float, window_s: float) -> np.ndarray:
+                      speed_m_s: float, s_proj_m: float, s_look_m: float, window_s: float,
+                      a_achieved_m_s2: float = 0.0) -> np.ndarray:
         """Mean squared cross-track error over the window for each candidate ratio."""
         p = self.params
         path = self.path
@@ -134,6 +144,10 @@ class GainOptimiser:
         s_l = np.full(m, max(s_look_m, s_proj_m))
         s_max = math.inf if path.closed else path.length_m
         sq_sum = np.zeros(m)
+        tau = p.rollout_tau_s
+        lag = math.exp(-dt / tau) if tau > 0 else 0.0
+        mean_factor = tau / dt * (1.0 - lag) if tau > 0 else 0.0
+        a_ach = np.full(m, a_achieved_m_s2)
         px, py, tx, ty, k = path.frame_array(s_p)
         for _ in range(n_steps):
             # Look-ahead: Newton on |p(s) - q|^2 = L1^2 from the previous one, kept ahead of
@@ -146,6 +160,9 @@ class GainOptimiser:
             s_l = np.minimum(np.maximum(s_l - np.clip(f / df, -2.0, 2.0), s_p), s_max)
             lx, ly, ltx, lty, lk = path.frame_array(s_l)
             a = corrector_command_array(x, y, psi, V, l1, px, py, tx, ty, lx, ly, ltx, lty, lk, k1, k2)
+            if tau > 0:
+                # First-order inner loop, exact over the step; the step uses its mean.
+                a, a_ach = a + (a_ach - a) * mean_factor, a + (a_ach - a) * lag
             # Exact unicycle step for a constant turn rate (eq. 1).
             w = a / V
             dpsi = w * dt

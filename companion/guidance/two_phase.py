@@ -46,6 +46,10 @@ from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
 from companion.guidance.types import GuidanceOutput, GuidanceParams, VehicleState
 
 
+# Below this ground speed the rollouts are meaningless (hovering, taking off): gains are kept.
+MIN_OPTIMISE_SPEED_M_S = 0.3
+
+
 class TwoPhaseGuidance:
     """Algorithm 1 of the paper as one object fed once per tick.
 
@@ -67,6 +71,10 @@ class TwoPhaseGuidance:
         self._k1 = 1.0 if params.method == "fixed_l1" else params.k1_max
         self._k2 = 0.0
         self._t_next_opt = -math.inf
+        # Commands held since _t_cmd, for the inner-loop estimate of the rollouts.
+        self._a_cmd_prev = 0.0
+        self._a_est = 0.0
+        self._t_cmd: float | None = None
 
     # ------------------------------------------------------------------ public
     @property
@@ -96,11 +104,14 @@ class TwoPhaseGuidance:
                                                     self.params.circle_radius_m, self.params.l1_m)
         if self._finished:
             return self._finished_output(state)
+        out = None
         if self._midcourse is not None and self._midcourse.stage != "done":
             out = self._midcourse_step(t_s, state)
-            if out is not None:
-                return out
-        return self._close_range_step(t_s, state)
+        if out is None:
+            out = self._close_range_step(t_s, state)
+        if self.params.rollout_tau_s > 0:
+            self._remember_command(t_s, out.a_cmd_m_s2)
+        return out
 
     # ------------------------------------------------------------------ phases
     def _midcourse_step(self, t_s: float, state: VehicleState) -> GuidanceOutput | None:
@@ -152,9 +163,10 @@ class TwoPhaseGuidance:
             return GuidanceOutput(a_cmd_m_s2=a, phase="close_range", crosstrack_m=crosstrack,
                                   s_proj_m=s_proj, k1=1.0, k2=0.0, lookahead_xy_m=(lx, ly))
         reoptimised = False
-        if t_s >= self._t_next_opt:
+        if t_s >= self._t_next_opt and V > MIN_OPTIMISE_SPEED_M_S:
             warm = ratio_from_gains(self._k1, self._k2)
-            k1, k2, window = self._optimiser.optimise(x, y, course, V, s_proj, s_look, warm)
+            k1, k2, window = self._optimiser.optimise(x, y, course, V, s_proj, s_look, warm,
+                                                      self._a_achieved_estimate(t_s))
             self._k1, self._k2 = k1, k2
             self._t_next_opt = t_s + window
             reoptimised = True
@@ -167,6 +179,19 @@ class TwoPhaseGuidance:
             extra={"a12_m_s2": terms.a12_m_s2, "a14_m_s2": terms.a14_m_s2, "w1": terms.w1,
                    "w2": terms.w2},
         )
+
+    def _a_achieved_estimate(self, t_s: float) -> float:
+        """The inner loop's acceleration now, if it lags the commands by ``rollout_tau_s``."""
+        tau = self.params.rollout_tau_s
+        if tau <= 0 or self._t_cmd is None:
+            return 0.0
+        lag = math.exp(-max(t_s - self._t_cmd, 0.0) / tau)
+        return self._a_cmd_prev + (self._a_est - self._a_cmd_prev) * lag
+
+    def _remember_command(self, t_s: float, a_cmd: float) -> None:
+        self._a_est = self._a_achieved_estimate(t_s)
+        self._a_cmd_prev = a_cmd
+        self._t_cmd = t_s
 
     def _finished_output(self, state: VehicleState, s_proj: float | None = None,
                          crosstrack: float | None = None) -> GuidanceOutput:

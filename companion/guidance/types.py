@@ -30,6 +30,8 @@ class GuidanceParams:
     k1_max, k2_max : upper bounds of the online corrector-weight search (both >= 0).
     d_limit_factor : the re-optimisation window is ``min(d_limit_factor * L1, R_proj) / V``
         (the paper's d_limit = 2 L1).
+    rollout_tau_s : time constant of the first-order inner loop the corrector's rollouts assume
+        (0, the default, is the paper's ideal inner loop: achieved = commanded acceleration).
     """
 
     method: str = "corrector"
@@ -41,6 +43,7 @@ class GuidanceParams:
     k1_max: float = 1.0
     k2_max: float = 1.0e4
     d_limit_factor: float = 2.0
+    rollout_tau_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -54,7 +57,7 @@ class GuidanceParams:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
-        for name in ("k1_max", "k2_max"):
+        for name in ("k1_max", "k2_max", "rollout_tau_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")

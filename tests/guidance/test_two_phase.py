@@ -112,3 +112,28 @@ def test_optimiser_prefers_the_corrector_on_a_tight_curve_and_improves_the_rollo
     rhos = np.array([0.0, ratio_from_gains(k1, k2)])
     cost = opt._rollout_cost(rhos, x, y, heading, 5.0, s, s_look, window)
     assert cost[1] <= cost[0]
+
+
+def test_inner_loop_estimate_follows_the_first_order_step_response():
+    params = GuidanceParams(rollout_tau_s=0.4)
+    law = TwoPhaseGuidance(waypoint_path([(0.0, 0.0), (100.0, 0.0)]), params)
+    law._remember_command(0.0, 2.0)  # command 2 m/s^2 from t = 0, from rest
+    for t in (0.1, 0.4, 1.2):
+        assert law._a_achieved_estimate(t) == pytest.approx(2.0 * (1 - math.exp(-t / 0.4)))
+    law._remember_command(1.2, -1.0)  # then -1 from t = 1.2
+    a12 = 2.0 * (1 - math.exp(-1.2 / 0.4))
+    assert law._a_achieved_estimate(1.5) == pytest.approx(-1.0 + (a12 + 1.0) * math.exp(-0.3 / 0.4))
+
+
+def test_rollout_tau_must_be_non_negative():
+    with pytest.raises(ValueError, match="rollout_tau_s"):
+        GuidanceParams(rollout_tau_s=-0.1)
+
+
+def test_no_reoptimisation_while_hovering():
+    line = waypoint_path([(0.0, 0.0), (100.0, 0.0)])
+    law = TwoPhaseGuidance(line, GuidanceParams(method="corrector", midcourse_trigger="off"))
+    out = law.step(0.0, VehicleState(0.0, 1.0, 0.0, 0.0))
+    assert not out.reoptimised and math.isfinite(out.a_cmd_m_s2)
+    out = law.step(0.02, VehicleState(0.0, 1.0, 0.0, 5.0))
+    assert out.reoptimised
