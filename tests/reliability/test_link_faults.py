@@ -9,8 +9,9 @@ sockets on the companion's port. Expected behaviour (docs/reliability.md):
 - old positions replayed from the autopilot's own address are never used;
 - an autopilot restart (heartbeat gap, then the same system id from a new port): the companion
   follows it to the new address and, seeing it no longer in OFFBOARD, stops commanding;
-- a second autopilot (another system id) and a stranger (the same system id, another address)
-  on the companion's port: ignored and counted; nothing is ever sent to them.
+- a second autopilot (another system id, heard first; ``--target-system 1``) and a stranger (the
+  same system id, another address) on the companion's port: ignored and counted; nothing is ever
+  sent to them.
 """
 
 from __future__ import annotations
@@ -105,6 +106,8 @@ def test_one_second_position_blackout_holds_then_resumes(tmp_path):
     assert 0.3 <= stale_to_hold <= 0.3 + 0.25, stale_to_hold
     resumed = [r for r in g if r._timestamp > last_hold and r.data[F_PHASE] != PHASE_HOLD]
     assert resumed and resumed[0]._timestamp - first_after <= 0.2
+    # ... and the path following goes on: the vehicle stopped on the path, so it stays on it.
+    assert all(abs(r.data[F_XTRACK]) < 0.5 for r in resumed)
     # Hold ticks in the summary match the records; no hold outside the blackout.
     assert summary["hold_ticks"] == len(holds)
     record("position_blackout", blackout_s=1.0, stale_s=0.3,
@@ -217,15 +220,15 @@ class Stranger:
 def test_second_autopilot_and_stranger_on_the_companion_port_are_ignored_and_never_answered(tmp_path):
     port = free_udp_port()
     mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "5")
-    mock = Mock(f"udpout:127.0.0.1:{port}")
-    other = None
+    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "5", "--target-system", "1")
+    # A second autopilot, system 2, 500 m away, on the same port, heard first.
+    other = Mock(f"udpout:127.0.0.1:{port}", "--start-ned", "500,500", sysid=2, tlog=tmp_path / "other.tlog")
+    time.sleep(1.5)
+    mock = None
     stranger = Stranger(port)
     try:
+        mock = Mock(f"udpout:127.0.0.1:{port}")
         comp.wait_flying()
-        # A second autopilot, system 2, 500 m away, on the same port.
-        other = Mock(f"udpout:127.0.0.1:{port}", "--start-ned", "500,500", sysid=2,
-                     tlog=tmp_path / "other.tlog")
         end = time.monotonic() + 3.0
         t_ms = 10_000_000
         while time.monotonic() < end and comp.p.poll() is None:
@@ -234,8 +237,9 @@ def test_second_autopilot_and_stranger_on_the_companion_port_are_ignored_and_nev
             time.sleep(0.02)
         rc, summary = comp.result()
     finally:
-        other_summary = other.stop() if other is not None else {}
-        mock.stop()
+        other_summary = other.stop()
+        if mock is not None:
+            mock.stop()
     assert rc == 0, comp.stderr
     rej = _rejected(summary)
     assert rej["wrong_system"] > 0  # the second autopilot's messages
