@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import signal
 import statistics
 import subprocess
 import sys
@@ -182,11 +183,13 @@ def test_two_links_both_get_the_streams(mock_factory):
         gcs.close()
 
 
-def test_tlog_holds_both_directions_and_mavlogdump_reads_it(mock_factory, tmp_path):
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])
+def test_tlog_holds_both_directions_and_mavlogdump_reads_it(mock_factory, tmp_path, stop_signal):
     tlog = tmp_path / "both.tlog"
     mock, client = mock_factory("--speedup", "5", "--tlog", str(tlog))
     client.wait("HEARTBEAT")
     assert client.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    mock.proc.send_signal(stop_signal)
     mock.stop()
     assert mock.proc.returncode == 0
     assert "tlog_records=" in mock.stderr
@@ -252,3 +255,20 @@ def test_ardupilot_global_int_target_is_flown_in_guided(mock_factory):
                                                    0, 0, 0, 0, 0, 0, 0, 0)
     pos = client.wait("LOCAL_POSITION_NED", 20.0, lambda m: abs(m.y - east_m) < 0.2 and abs(m.z + 12.0) < 0.2)
     assert pos is not None and abs(pos.x) < 0.2
+
+
+def test_udpout_answers_a_second_client_where_its_datagrams_come_from(mock_factory):
+    _, client = mock_factory("--speedup", "5")
+    client.wait("HEARTBEAT")
+    (address,) = client.conn.clients
+    other = mavutil.mavlink_connection(f"udpout:{address[0]}:{address[1]}", source_system=254,
+                                       source_component=190, dialect="ardupilotmega")
+    try:
+        other.mav.command_long_send(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                                    NAN, NAN, NAN, NAN, NAN, NAN)
+        ack = other.recv_match(type="COMMAND_ACK", blocking=True, timeout=5)
+        assert ack is not None and (ack.command, ack.target_system) == (M.MAV_CMD_REQUEST_MESSAGE, 254)
+        # It is now a peer of that link: the streams reach it too.
+        assert other.recv_match(type="LOCAL_POSITION_NED", blocking=True, timeout=5) is not None
+    finally:
+        other.close()
