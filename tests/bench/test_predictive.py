@@ -108,3 +108,19 @@ def test_a_larger_lambda_flies_smoother_and_looser():
     (a_tight, d_tight), (a_smooth, d_smooth) = out
     assert a_smooth < a_tight
     assert d_smooth > d_tight
+
+
+def test_far_start_heading_away_under_lag_captures_without_circling():
+    # 40 m right of a line and flying away from it: the law must turn back and capture (a plan
+    # that saturates the turn must not get stuck circling).
+    from companion.sim.simulator import LagModel, simulate
+
+    path = LinePath(x0=-50.0, length_m=600.0)
+    law = PredictiveGuidance(path, PredictiveParams(lag_s=0.3, a_max_m_s2=5.0))
+    res = simulate(path, law, VehicleState(0.0, -40.0, -math.pi / 2, V), GuidanceParams(speed_m_s=V),
+                   model=LagModel(0.3, 5.0), t_max_s=40.0)
+    d = np.abs(res.crosstrack_m)
+    reached = np.flatnonzero(d <= 1.0)
+    assert reached.size and res.t_s[reached[0]] < 25.0
+    assert np.max(d[-250:]) < 0.1
+    assert res.x_m[-1] > 80.0  # it went along the line, not round in circles
