@@ -14,7 +14,7 @@ Kinds (each datagram is one of them, drawn with fixed weights from a seeded gene
                  companion; setpoints and commands for the autopilot).
 
 The fuzzer never sends a valid, plausible message from the paired system: that is
-indistinguishable from the real thing without signing (see ``test_signing.py``).
+indistinguishable from the real thing without signing (see ``test_signing_end_to_end.py``).
 """
 
 from __future__ import annotations
