@@ -158,3 +158,30 @@ def test_unwritable_log_path_is_refused_before_the_link_is_opened(tmp_path):
     assert time.monotonic() - t0 < 15  # not after waiting for a heartbeat (20 s)
     assert "companion: error:" in comp.stderr and "not_a_directory" in comp.stderr
     assert "Traceback" not in comp.stderr
+
+
+def test_nearly_full_disk_is_refused_before_the_link_is_opened(tmp_path, monkeypatch):
+    """The log's file system reports 1 MiB free (below the writer's 20 MiB floor): the flight is
+    refused with a LogError naming the path, before any link is opened (nobody is listening on
+    the port, so reaching the link would mean a 20 s heartbeat wait)."""
+    import collections
+    import shutil
+
+    from companion.errors import LogError
+    from companion.loop.runner import FlightRunner, FlyOptions, Status
+    from companion.mission import load_mission
+
+    usage = collections.namedtuple("usage", "total used free")
+    real = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage",
+                        lambda p: usage(real(p).total, real(p).total - 2**20, 2**20))
+    mission = load_mission(str(write_mission(tmp_path)))
+    port = free_udp_port()
+    runner = FlightRunner(mission, FlyOptions(connect=f"udpin:127.0.0.1:{port}", rate_hz=50.0,
+                                              tlog_path=str(tmp_path / "c.tlog"), heartbeat_timeout_s=20.0),
+                          Status(quiet=True))
+    t0 = time.monotonic()
+    with pytest.raises(LogError, match=r"c\.tlog.*free"):
+        runner.run()
+    assert time.monotonic() - t0 < 5.0
+    assert runner.link is None
