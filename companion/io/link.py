@@ -11,7 +11,8 @@ Connection strings (as pymavlink spells them):
   dropped and counted (pymavlink's own UDP server would start sending to whoever wrote last).
   After the pinned peer has been silent for ``repin_after_s`` a heartbeat of the *same* system
   and component from a new address re-pins it (an autopilot restart gets a new source port).
-* ``udpout:127.0.0.1:14550`` send to a fixed address, receive replies on the same socket.
+* ``udpout:127.0.0.1:14550`` send to a fixed address, receive replies on the same socket (only
+  datagrams from that address are accepted).
 * ``tcp:127.0.0.1:5760`` (ArduPilot SITL), ``/dev/ttyACM0,921600`` (serial).
 
 Packets are parsed with pymavlink's MAVLink 2 parser (MAVLink 1 is read too). A UDP datagram is
@@ -67,6 +68,9 @@ MAV_MODE_FLAG_SAFETY_ARMED = 128
 
 MAV_RESULT_NAMES = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "UNSUPPORTED",
                     4: "FAILED", 5: "IN_PROGRESS", 6: "CANCELLED"}
+
+#: A time_boot_ms this far behind the newest one means the autopilot restarted.
+RESTART_JUMP_S = 2.0
 
 REJECT_REASONS = ("bad_crc", "bad_data", "unknown", "wrong_system", "wrong_address", "unsigned",
                   "bad_signature", "nan", "out_of_range", "old_sample")
@@ -346,6 +350,7 @@ class MavLink:
         self.received = 0
         self.sent = 0
         self.stranger_addresses: set = set()
+        self.restarts = 0
         self._peer_last_s = math.nan
         self._last_own_heartbeat_s = -math.inf
         self.on_message: Callable | None = None  # optional hook(msg) for accepted messages
@@ -428,9 +433,9 @@ class MavLink:
         if src != paired:
             self.rejected["wrong_system"] += 1
             return 0
-        if self._transport.datagrams and self._transport.listen and addr != self._transport.peer:
+        if self._transport.datagrams and addr != self._transport.peer:
             silent = not (now - self._peer_last_s < self.repin_after_s)
-            if mtype == "HEARTBEAT" and silent and self._is_autopilot_heartbeat(msg):
+            if mtype == "HEARTBEAT" and silent and self._transport.listen and self._is_autopilot_heartbeat(msg):
                 self._transport.peer = addr  # the same autopilot came back on a new address
             else:
                 self.rejected["wrong_address"] += 1
@@ -519,6 +524,9 @@ class MavLink:
         t = time_boot_ms / 1000.0
         if not (t <= self.state.autopilot_time_s):  # also when still NaN
             self.state.autopilot_time_s = t
+        elif t < self.state.autopilot_time_s - RESTART_JUMP_S:
+            self.state.autopilot_time_s = t  # the autopilot rebooted: its clock starts again
+            self.restarts += 1
 
     def _check_signature(self, msgbuf, src_system: int, src_component: int) -> bool:
         """MAVLink 2 signature check: signature first, then a strictly increasing timestamp."""
@@ -686,7 +694,7 @@ class MavLink:
         self._recorder.seq = (self._recorder.seq + 1) % 256
 
     def counters(self) -> dict:
-        return {"received": self.received, "sent": self.sent,
+        return {"received": self.received, "sent": self.sent, "autopilot_restarts": self.restarts,
                 "rejected": dict(self.rejected), "rejected_total": sum(self.rejected.values())}
 
     def close(self) -> None:

@@ -163,6 +163,7 @@ def test_pilot_mode_change_stops_the_companion(tmp_path):
     th.start()
     with pytest.raises(FlightAborted, match="pilot override"):
         fly(m, "ardupilot", tmp_path, extra_mock=("--link", f"udpin:127.0.0.1:{gcs_port}"))
+    th.join(5.0)
     sock.close()
     msgs = tlog_types(tmp_path / "flight.tlog")
     hb = [(i, x.custom_mode) for i, x in enumerate(msgs)

@@ -235,3 +235,39 @@ def test_bad_connection_strings_are_link_errors():
         MavLink("carrier-pigeon:42")
     with pytest.raises(LinkError):
         MavLink("udpin:127.0.0.1:notaport")
+
+
+def test_udpout_accepts_only_the_address_it_sends_to():
+    srv = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    srv.bind(("127.0.0.1", 0))
+    port = srv.getsockname()[1]
+    link = MavLink(f"udpout:127.0.0.1:{port}")
+    link.send_heartbeat()
+    data, companion_addr = srv.recvfrom(65535)
+    # the autopilot answers from the address the companion sends to
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    hb = mav.heartbeat_encode(2, 12, 0, 0, 4).pack(mav)
+    srv.sendto(hb, companion_addr)
+    stranger = FakeAutopilot(companion_addr)
+    stranger.heartbeat()
+    pump(link)
+    assert link.info is not None and link.rejected["wrong_address"] == 1
+    link.close(); srv.close(); stranger.close()
+
+
+def test_autopilot_reboot_restarts_its_clock(port):
+    link = MavLink(f"udpin:127.0.0.1:{port}")
+    ap = FakeAutopilot(("127.0.0.1", port))
+    paired(link, ap)
+    ap.position(60_000)
+    pump(link)
+    assert link.state.autopilot_time_s == 60.0
+    ap.position(59_500)  # reordered datagram: the clock does not go back
+    pump(link)
+    assert link.state.autopilot_time_s == 60.0
+    time.sleep(1.1)  # a reboot: silence, then time_boot_ms starts again
+    ap.heartbeat()
+    ap.position(1_000)
+    pump(link)
+    assert link.state.autopilot_time_s == 1.0 and link.restarts == 1
+    link.close(); ap.close()
