@@ -10,8 +10,9 @@ same command: the search is over ``rho = k2 / k1`` in ``[0, inf]``. Its useful r
 because ``w2 / w1 = rho v_m k^2 (1 + l23) / (1 + l43)`` and the squared curvature ``k^2`` of a
 path like the paper's sine runs from about 1e-6 to 2e-2 1/m^2: the candidates are spaced
 logarithmically over ``RHO_LOG10_RANGE`` and include both pure ends, ``k2 = 0`` (constant L1)
-and ``k1 = 0`` (the corrector alone), plus the previous optimum (warm start). A second, finer
-batch around the best candidate refines it. A ratio maps back to bounded gains: ``k1 = k1_max,
+and ``k1 = 0`` (the corrector alone), plus the previous optimum and four neighbours within half
+a grid step of it (warm start: as the optimum drifts along the path, these refine it between the
+grid points). All candidates are rolled out in one batch. A ratio maps back to bounded gains: ``k1 = k1_max,
 k2 = rho k1_max`` while that stays within ``k2_max``, else ``k2 = k2_max, k1 = k2_max / rho``.
 
 With ``params.rollout_tau_s > 0`` the rollouts also model a first-order inner loop of that
@@ -36,7 +37,7 @@ from companion.guidance.types import GuidanceParams
 
 RHO_LOG10_RANGE = (-1.0, 7.0)
 RHO_COARSE_COUNT = 17  # log-spaced ratios in the first batch (half a decade apart)
-RHO_FINE_COUNT = 4  # second batch: within half a decade of the best ratio
+WARM_OFFSETS = (-0.5, -0.25, 0.0, 0.25, 0.5)  # around the previous optimum, in grid steps
 ROLLOUT_MAX_STEPS = 40
 
 
@@ -97,29 +98,16 @@ class GainOptimiser:
         """
         p = self.params
         window = self.window_s(s_proj_m, speed_m_s)
-        # Batch 1: pure ends, the log grid and the warm start.
+        # One batch: both pure ends, the log grid, and the previous optimum with neighbours
+        # a quarter and an eighth of the grid step away on each side (the warm start refines).
         finite = list(10.0 ** self._coarse_log10)
         if warm_ratio is not None and 0.0 < warm_ratio < math.inf:
-            finite.append(warm_ratio)
+            lw = math.log10(warm_ratio)
+            finite += [10.0 ** (lw + f * self._step_log10) for f in WARM_OFFSETS]
         rhos = np.array([0.0] + finite + [math.inf])
         cost = self._rollout_cost(rhos, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window,
                                   a_achieved_m_s2)
-        best = int(np.argmin(cost))
-        best_rho, best_cost = float(rhos[best]), float(cost[best])
-        # Batch 2: refine around the best finite ratio (or next to the pure end that won).
-        if best_rho == 0.0:
-            centre = RHO_LOG10_RANGE[0]
-        elif math.isinf(best_rho):
-            centre = RHO_LOG10_RANGE[1]
-        else:
-            centre = math.log10(best_rho)
-        offsets = np.linspace(-self._step_log10, self._step_log10, RHO_FINE_COUNT + 2)[1:-1]
-        fine = 10.0 ** (centre + offsets)
-        cost2 = self._rollout_cost(fine, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window,
-                                   a_achieved_m_s2)
-        j = int(np.argmin(cost2))
-        if cost2[j] < best_cost:
-            best_rho = float(fine[j])
+        best_rho = float(rhos[int(np.argmin(cost))])
         k1, k2 = gains_from_ratio(best_rho, p.k1_max, p.k2_max)
         return k1, k2, window
 
