@@ -85,6 +85,42 @@ def test_mavsdk_connects_reads_position_arms_and_flies_offboard_velocity():
     assert int(mock.summary()["rx_dropped"]) == 0
 
 
+def test_mavsdk_flies_the_ardupilot_personality_after_asking_for_streams():
+    """ArduPilot sends nothing until asked: MAVSDK's set_rate_* calls are what start the telemetry."""
+    from mavsdk import ComponentType, Configuration, Mavsdk
+    from mavsdk.plugins.action import Action
+    from mavsdk.plugins.offboard import Offboard, VelocityNedYaw
+    from mavsdk.plugins.telemetry import FlightMode, Telemetry
+
+    port = free_udp_port()
+    mock = MockProcess("--autopilot", "ardupilot", "--vehicle", "copter", "--link", f"udpout:127.0.0.1:{port}",
+                       "--speedup", "4")
+    sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+    try:
+        sdk.add_any_connection(f"udpin://127.0.0.1:{port}")
+        system = sdk.first_autopilot(15.0)
+        assert system is not None
+        telemetry, action, offboard = Telemetry(system), Action(system), Offboard(system)
+        time.sleep(0.5)
+        assert math.isnan(telemetry.position_velocity_ned().position.north_m)  # nothing streamed yet
+        telemetry.set_rate_position_velocity_ned(20.0)
+        assert wait_until(lambda: telemetry.position_velocity_ned().position.down_m == 0.0, 10.0)
+        action.set_takeoff_altitude(5.0)
+        action.arm()
+        action.takeoff()  # MAVSDK switches to GUIDED, then MAV_CMD_NAV_TAKEOFF
+        assert wait_until(lambda: abs(telemetry.position_velocity_ned().position.down_m + 5.0) < 0.2, 15.0)
+        offboard.set_velocity_ned(VelocityNedYaw(2.0, 1.0, 0.0, 0.0))
+        offboard.start()
+        moved = wait_until(lambda: (p := telemetry.position_velocity_ned()).position.north_m > 10.0 and p, 20.0)
+        assert moved and moved.velocity.east_m_s == pytest.approx(1.0, abs=0.1)
+        offboard.stop()  # ArduCopter: BRAKE, which MAVSDK shows as Hold
+        assert wait_until(lambda: telemetry.flight_mode() == FlightMode.HOLD, 10.0)
+    finally:
+        sdk.destroy()
+        mock.stop()
+    assert mock.proc.returncode == 0
+
+
 def _mavproxy_scripts(folder) -> str:
     """Staged MAVProxy scripts; each clears the timer, does one step and schedules the next."""
     stages = [
@@ -96,7 +132,7 @@ def _mavproxy_scripts(folder) -> str:
     for index, commands in enumerate(stages):
         lines = ["repeat clean", *commands]
         if index + 1 < len(stages):
-            lines.append(f"repeat add 2 script {folder / f'stage{index + 1}.scr'}")
+            lines.append(f"repeat add 1.5 script {folder / f'stage{index + 1}.scr'}")
         (folder / f"stage{index}.scr").write_text("\n".join(lines) + "\n")
     return f"repeat add 3 script {folder / 'stage0.scr'}"
 
