@@ -80,9 +80,9 @@ class MidcoursePlan:
     """The chosen approach, the alternative, and the paper's case."""
 
     chosen: Approach
-    other: Approach
+    other: Approach | None  # None when the vehicle is inside the other circle
     case: int  # 1: vehicle behind the path start, 2: in front
-    rule: str  # "only_primary" (red/blue sectors) or "lower_acceleration" (green sectors)
+    rule: str  # "only_primary" (red/blue sectors), "lower_acceleration" (green), "only_outside"
 
 
 def initiation_circles(start_xy_m: tuple[float, float], start_heading_rad: float,
@@ -159,12 +159,27 @@ def contact_approach(x_m: float, y_m: float, course_rad: float, speed_m_s: float
 def plan_midcourse(x_m: float, y_m: float, course_rad: float, speed_m_s: float,
                    start_xy_m: tuple[float, float], start_heading_rad: float,
                    radius_m: float) -> MidcoursePlan:
-    """Choose the initiation circle and contact point (Case 1 / Case 2 rules, module docstring)."""
+    """Choose the initiation circle and contact point (Case 1 / Case 2 rules, module docstring).
+
+    A vehicle inside one initiation circle (possible with the ``"paper"`` trigger when R0 < R)
+    cannot reach it tangentially from outside: the other circle is flown (rule
+    ``"only_outside"``, ``other`` is then None). The two circles only touch at S, so a vehicle
+    away from S is always outside at least one of them.
+    """
     left, right = initiation_circles(start_xy_m, start_heading_rad, radius_m)
-    a_left = contact_approach(x_m, y_m, course_rad, speed_m_s, left, start_xy_m)
-    a_right = contact_approach(x_m, y_m, course_rad, speed_m_s, right, start_xy_m)
     tx, ty = math.cos(start_heading_rad), math.sin(start_heading_rad)
     case = 1 if (x_m - start_xy_m[0]) * tx + (y_m - start_xy_m[1]) * ty < 0.0 else 2
+    approaches = []
+    for circle in (left, right):
+        try:
+            approaches.append(contact_approach(x_m, y_m, course_rad, speed_m_s, circle, start_xy_m))
+        except ValueError:  # on or inside this circle
+            approaches.append(None)
+    a_left, a_right = approaches
+    if a_left is None or a_right is None:
+        if a_left is None and a_right is None:
+            raise ValueError("mid-course: the vehicle is at the path start, inside both circles")
+        return MidcoursePlan(a_left or a_right, None, case, "only_outside")
     if a_left.primary != a_right.primary:
         chosen, other = (a_left, a_right) if a_left.primary else (a_right, a_left)
         rule = "only_primary"

@@ -151,3 +151,27 @@ def test_paper_trigger_fires_beyond_twice_the_start_radius_of_curvature():
     law = TwoPhaseGuidance(arc, GuidanceParams(midcourse_trigger="paper"))
     assert law.should_trigger_midcourse(VehicleState(0.0, -41.0, 0.0, V))
     assert not law.should_trigger_midcourse(VehicleState(0.0, -39.0, 0.0, V))
+
+
+def test_a_vehicle_inside_one_initiation_circle_flies_the_other_and_arrives():
+    # Paper trigger on an arc of radius R0 = 6 m (fires 12 m away) with R = 10 m circles:
+    # (-5, 14) is 14.9 m from S = (0, 0), inside the left circle (centre (0, 10)), outside the right.
+    arc = function_path(lambda x: 6.0 - np.sqrt(np.maximum(36.0 - x * x, 0.0)), (0.0, 5.0))
+    arc_start_heading = arc.start_heading_rad
+    assert abs(arc_start_heading) < 1e-6
+    plan = plan_midcourse(-5.0, 14.0, math.radians(-90.0), V, (0.0, 0.0), 0.0, 10.0)
+    assert plan.rule == "only_outside" and plan.chosen.circle.name == "right" and plan.other is None
+    law = TwoPhaseGuidance(arc, GuidanceParams(method="fixed_l1", midcourse_trigger="paper"))
+    assert law.should_trigger_midcourse(VehicleState(-5.0, 14.0, math.radians(-90.0), V))
+    from companion.sim.simulator import unicycle_step
+
+    x, y, psi, t = -5.0, 14.0, math.radians(-90.0), 0.0
+    while True:
+        out = law.step(t, VehicleState(x, y, psi, V))
+        if out.phase != "midcourse":
+            break
+        x, y, psi = unicycle_step(x, y, psi, V, out.a_cmd_m_s2, 0.02)
+        t += 0.02
+        assert t < 120.0
+    assert math.hypot(x, y) < 1.0
+    assert abs(math.degrees((psi + math.pi) % (2 * math.pi) - math.pi)) < 5.0
