@@ -271,3 +271,32 @@ def test_autopilot_reboot_restarts_its_clock(port):
     pump(link)
     assert link.state.autopilot_time_s == 1.0 and link.restarts == 1
     link.close(); ap.close()
+
+
+@pytest.mark.parametrize("autopilot, mav_type, name, expected", [
+    (12, 2, "offboard", 6 << 16),
+    (12, 2, "hold", (4 << 16) | (3 << 24)),   # PX4 AUTO.LOITER
+    (12, 2, "rtl", (4 << 16) | (5 << 24)),
+    (12, 2, "land", (4 << 16) | (6 << 24)),
+    (3, 2, "guided", 4), (3, 2, "loiter", 5), (3, 2, "rtl", 6), (3, 2, "land", 9),   # ArduCopter
+    (3, 1, "guided", 15), (3, 1, "loiter", 12), (3, 1, "rtl", 11),                     # ArduPlane
+    (3, 10, "guided", 15), (3, 10, "hold", 4), (3, 10, "rtl", 11),                     # Rover
+])
+def test_mode_numbers_per_autopilot_and_vehicle(autopilot, mav_type, name, expected):
+    port = free_port()
+    link = MavLink(f"udpin:127.0.0.1:{port}")
+    ap = FakeAutopilot(("127.0.0.1", port), autopilot=autopilot, mav_type=mav_type)
+    paired(link, ap)
+    assert link.custom_mode_value(name) == expected
+    link.state.custom_mode = expected
+    assert link.in_mode(name)
+    link.close(); ap.close()
+
+
+def test_land_is_not_a_plane_mode(port):
+    link = MavLink(f"udpin:127.0.0.1:{port}")
+    ap = FakeAutopilot(("127.0.0.1", port), autopilot=3, mav_type=1)
+    paired(link, ap)
+    with pytest.raises(LinkError, match="not available on an ArduPilot plane"):
+        link.mode_number("land")
+    link.close(); ap.close()

@@ -34,7 +34,7 @@ PX4_HOLD = (4 << 16) | (3 << 24)
 
 class KinematicAutopilot(threading.Thread):
     def __init__(self, dest, autopilot="px4", x=0.0, y=0.0, alt=10.0, vn=0.0, ve=0.0, armed=True,
-                 drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0):
+                 drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0, mode_return_at_s=None):
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -51,6 +51,8 @@ class KinematicAutopilot(threading.Thread):
         self.vel = [vn, ve, 0.0]
         self.drop_positions_at_s = drop_positions_at_s
         self.mode_change_at_s = mode_change_at_s
+        self.mode_return_at_s = mode_return_at_s  # the "pilot" selects OFFBOARD/GUIDED again
+        self._returned = False
         self.arm_refusals = arm_refusals
         self.stop_flag = threading.Event()
         self.setpoints = []  # (t_s, msg) received
@@ -77,7 +79,12 @@ class KinematicAutopilot(threading.Thread):
                 self.vel = [0.0, 0.0, 0.0]
             if self.mode_change_at_s is not None and self.offboard_entered_s is not None and \
                     t - self.offboard_entered_s >= self.mode_change_at_s and self.custom_mode == self.guided_mode:
-                self.custom_mode = self.hold_mode
+                if not self._returned:
+                    self.custom_mode = self.hold_mode
+            if self.mode_return_at_s is not None and self.offboard_entered_s is not None and \
+                    not self._returned and t - self.offboard_entered_s >= self.mode_return_at_s:
+                self.custom_mode = self.guided_mode
+                self._returned = True
             tb = int(t * 1000)
             if t >= next_hb:
                 base = 1 | (128 if self.armed else 0)

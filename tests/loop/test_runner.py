@@ -97,9 +97,10 @@ def test_dropped_position_stream_holds_within_one_tick_of_the_stale_limit(free_u
     holds = [i for i, h in enumerate(r.hold) if h]
     assert holds, "no hold after the position stream stopped"
     first = holds[0]
-    period = 1.0 / 50.0
-    # The hold starts at the first tick past the limit (0.3 s + one tick, plus scheduling jitter).
-    assert 0.3 < r.sample_age_s[first] <= 0.3 + period + 0.03
+    # The hold starts on the very first tick past the limit: the tick before it was still fresh.
+    # (On an idle machine the first hold age is 0.30-0.32 s; the bound allows scheduling delay
+    # on a loaded one.)
+    assert r.sample_age_s[first - 1] <= 0.3 < r.sample_age_s[first] <= 0.3 + 0.25
     # Never a setpoint computed from a position older than the stale limit.
     assert all(age <= 0.3 for age, h in zip(r.sample_age_s, r.hold) if not h)
     # The hold setpoints on the wire are zero velocity and zero yaw rate.
@@ -157,3 +158,17 @@ def test_heartbeat_loss_stops_and_leaves_a_readable_tlog(free_udp_port, tmp_path
     msgs = tlog_messages(tmp_path / "f.tlog")
     assert any(m.get_type() == "DEBUG_FLOAT_ARRAY" for m in msgs)
     assert any(m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 191 for m in msgs)
+
+
+def test_resume_waits_for_the_pilot_to_hand_back_control_then_continues(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", ve=5.0, mode_change_at_s=0.5,
+                              mode_return_at_s=1.5)
+    runner = fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), resume=True, max_duration_s=2.5)
+    assert runner.summary["exit"] == "max duration"
+    t_off = peer.offboard_entered_s + 0.5
+    t_back = peer.offboard_entered_s + 1.5
+    during = [t for t, _ in peer.setpoints if t_off + 0.25 < t < t_back]
+    after = [t for t, _ in peer.setpoints if t > t_back]
+    assert during == [] and len(after) > 10
+    assert sum(1 for _, m in peer.commands if m.command == 176 and int(m.param2) == 6) == 1
+    assert any("resuming" in e for e in runner.events)
