@@ -40,7 +40,12 @@ ID_SPT = MSG_ID["SET_POSITION_TARGET_LOCAL_NED"]
 ID_DFA = MSG_ID["DEBUG_FLOAT_ARRAY"]
 ID_ATTITUDE = MSG_ID["ATTITUDE"]
 ID_SAT = MSG_ID["SET_ATTITUDE_TARGET"]
+ID_HEARTBEAT = MSG_ID["HEARTBEAT"]
+MAV_AUTOPILOT_INVALID = 8
 PROGRESS_EVERY_RECORDS = 4096
+#: A guidance row and the setpoint after it are one tick's when less than this many periods apart
+#: (a coasting setpoint follows a late row only after the runner's step budget, half a period).
+PAIR_GAP_PERIODS = 0.45
 N_DEBUG = len(DEBUG_FIELDS)
 DEBUG_INDEX = {name: i for i, name in enumerate(DEBUG_FIELDS)}
 
@@ -132,13 +137,15 @@ def read_flight(
     Raises :class:`LogError` when the file has no setpoints to compare (or cannot be read).
     """
     path = Path(path)
-    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT}, on_warning=on_warning,
+    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT, ID_HEARTBEAT}, on_warning=on_warning,
                         light=True)
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
     newest_yaw: dict[int, float] = {}
     # per sender, in file order: (tlog time, LoggedSetpoint or LoggedTick, target system)
     events: dict[tuple[int, int], list[tuple]] = {}
+    last_target: dict[tuple[int, int], int] = {}  # sender -> target system of its last setpoint
+    not_autopilots: set[tuple[int, int]] = set()  # senders whose HEARTBEAT says MAV_AUTOPILOT_INVALID
     companion_ticks: list[LoggedTick] = []
     setpoint_ticks: list[LoggedTick] = []
     notes: list[str] = []
@@ -153,7 +160,10 @@ def read_flight(
             if msg is None:
                 continue
             mid = rec.msg_id
-            if mid == ID_LPN:
+            if mid == ID_HEARTBEAT:
+                if msg.autopilot == MAV_AUTOPILOT_INVALID:  # a GCS, a companion, a camera
+                    not_autopilots.add((rec.src_system, rec.src_component))
+            elif mid == ID_LPN and (rec.src_system, rec.src_component) not in not_autopilots:
                 sample = _sample(msg)
                 if sample is not None:
                     samples_by_ms.setdefault(rec.src_system, {})[sample.time_boot_ms] = sample
@@ -165,6 +175,7 @@ def read_flight(
                 sp = _setpoint(msg)
                 sender = (rec.src_system, rec.src_component)
                 events.setdefault(sender, []).append((rec.time_s, sp, msg.target_system))
+                last_target[sender] = msg.target_system
                 found = newest_sample.get(msg.target_system)
                 if found is not None:
                     sample_time, sample = found
@@ -179,13 +190,18 @@ def read_flight(
                 sender = (rec.src_system, rec.src_component)
                 events.setdefault(sender, []).append(
                     (rec.time_s, LoggedAttitude(tuple(msg.q), msg.thrust, msg.type_mask), msg.target_system))
+                last_target[sender] = msg.target_system
             elif mid == ID_DFA:
                 name = msg.name.decode("ascii", "replace") if isinstance(msg.name, bytes) else str(msg.name)
                 if name != GUIDANCE_ARRAY_NAME:
                     continue
                 row = [float(v) for v in msg.data[:N_DEBUG]]
                 sender = (rec.src_system, rec.src_component)
-                target = next(iter(samples_by_ms), rec.src_system)
+                # the autopilot this sender commands: its last setpoint's target, else its own
+                # system (a companion shares its vehicle's system id), else the first to send positions
+                target = last_target.get(sender)
+                if target not in samples_by_ms:
+                    target = rec.src_system if rec.src_system in samples_by_ms else next(iter(samples_by_ms), None)
                 boot_ms = int(msg.time_usec // 1000)
                 hold_reason = int(row[DEBUG_INDEX["hold_reason"]])
                 sample = samples_by_ms.get(target, {}).get(boot_ms)
@@ -241,14 +257,16 @@ def _tick_rate_hz(ticks: list[LoggedTick]) -> float:
 def _pair_setpoints(events: dict[tuple[int, int], list[tuple]], rate_hz: float) -> tuple[int, int]:
     """Give each recorded tick the setpoint its sender sent with it.
 
-    The loop records a tick's guidance row and then sends that tick's setpoint, microseconds
-    apart. A row recorded late (its step outlived its tick, which coasted) is followed either by
-    the row of a fresh step or, when that one is slow too, by a coasting setpoint sent only after
-    the step budget (half a period) has run out. So a row is paired with the next record of the
-    same sender when that is a setpoint at most a quarter of a period later.
+    The loop records a tick's guidance row and then sends that tick's setpoint, normally
+    microseconds apart. A row recorded late (its step outlived its tick, which coasted) is
+    followed either by the row of a fresh step or, when that one is slow too, by a coasting
+    setpoint sent only after the step budget (half a period) has run out. So a row is paired
+    with the next record of the same sender when that is a setpoint less than
+    :data:`PAIR_GAP_PERIODS` of a period later (a pair delayed longer by a busy machine is left
+    unpaired: not compared, never mis-compared).
     Returns ``(rows without a setpoint, setpoints without a row)``.
     """
-    max_gap_s = 0.25 / rate_hz
+    max_gap_s = PAIR_GAP_PERIODS / rate_hz
     unpaired_rows = 0
     paired = 0
     setpoints = 0

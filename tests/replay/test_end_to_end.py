@@ -91,9 +91,10 @@ def test_flight_against_the_mock_replays_within_tolerance(mock_flight, capsys):
     assert j["kind"] == "companion"
     assert j["within_tolerance"] is True
     # Every guidance result is a recorded row; a result that arrived after its tick had coasted
-    # (a slow re-optimisation) has no setpoint of its own, and there is at most one per coast.
+    # (a slow re-optimisation) has no setpoint of its own, and there is at most one per coast
+    # (plus, on a very busy machine, a rare row whose setpoint left more than 0.45 period later).
     assert j["ticks"] == fly["ticks"] > 0.8 * FLIGHT_S * 50
-    assert fly["ticks"] - fly["coast_ticks"] <= j["steps_compared"] <= fly["ticks"]
+    assert fly["ticks"] - fly["coast_ticks"] - 2 <= j["steps_compared"] <= fly["ticks"]
     # the flight's own figures are the ones the flight reported
     assert j["d_rms_m"] == pytest.approx(fly["d_rms_m"], rel=1e-5)
     assert j["a_max_m_s2"] == pytest.approx(fly["a_max_m_s2"], rel=1e-5)

@@ -264,3 +264,29 @@ def test_fixed_wing_altered_attitude_is_caught_at_that_tick(plane_flight, tmp_pa
     assert result.exit_code == 1
     assert fd["tick"] == victim and fd["reasons"] == ["attitude"]
     assert 0.05 < fd["attitude_diff_rad"] < 0.15
+
+
+def test_interleaved_second_vehicle_and_ground_station_do_not_disturb_the_replay(flight, tmp_path):
+    """Before every position of the flown vehicle, a second vehicle (system 2) reports a position
+    with the same time_boot_ms 50 m away, and a ground station (255/190) sends a MAVLink 1
+    heartbeat: replay must still pick the flown vehicle's samples."""
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    other = mavlink.MAVLink(None, srcSystem=2, srcComponent=1)
+    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    out = bytearray()
+    for _, time_us, packet in iter_frames(flight.read_bytes()):
+        msg_id = packet[7] | packet[8] << 8 | packet[9] << 16
+        if packet[5] == 1 and packet[6] == 1 and msg_id == 32:
+            (boot_ms,) = struct.unpack_from("<I", packet, 10)
+            decoy = mavlink.MAVLink_local_position_ned_message(boot_ms, 50.0, 50.0, -10.0, 1.0, 1.0, 0.0)
+            hb = mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)
+            out += struct.pack(">Q", time_us - 200) + bytes(decoy.pack(other))
+            out += struct.pack(">Q", time_us - 100) + bytes(hb.pack(gcs, force_mavlink1=True))
+        out += struct.pack(">Q", time_us) + packet
+    busy = tmp_path / "busy.tlog"
+    busy.write_bytes(bytes(out))
+    shutil.copy(str(flight) + ".mission.yaml", str(busy) + ".mission.yaml")
+    result = replay_log(busy)
+    assert result.flight.warnings == []
+    assert result.within_tolerance and result.steps_compared == int(FLIGHT_S * 50)
