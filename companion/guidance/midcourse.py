@@ -221,7 +221,10 @@ class MidcourseGuidance:
     arc can be a huge loop (a kilometre for a vehicle flying away). So when the chosen approach
     needs a course change of more than ``TURN_IN_LIMIT_RAD`` on its arc, the vehicle first
     *turns in*: it turns towards the chosen circle's centre (the side is decided on the first
-    tick and kept) at the circle's own command ``V^2 / R`` and re-plans every tick until the plan's arc turns less than that limit.
+    tick and kept) at the circle's own command ``V^2 / R`` and re-plans every tick until the
+    plan's arc turns less than that limit. The same happens when the arc would be tighter than
+    the initiation circle itself (``|c| > 1 / R``: a start close to the circle, heading the wrong
+    way); R being the feasible turn radius, the approach command never exceeds ``V^2 / R``.
 
     ``step`` returns ``(a_cmd_m_s2, stage, done)``; ``stage`` is ``"turn_in"``, ``"approach"``
     or ``"circle"`` and ``done`` turns True on the tick the vehicle passes the path start on the
@@ -265,7 +268,8 @@ class MidcourseGuidance:
             if self.first_plan is None:
                 self.first_plan = plan
             self.plan = plan
-            if plan.chosen.turn_rad <= self.TURN_IN_LIMIT_RAD:
+            feasible = abs(plan.chosen.curvature_1_m) * self.radius_m <= 1.0 + 1e-9
+            if plan.chosen.turn_rad <= self.TURN_IN_LIMIT_RAD and feasible:
                 self.stage = "approach"
                 self._flown_m = 0.0
                 dt = 0.0

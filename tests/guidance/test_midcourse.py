@@ -175,3 +175,30 @@ def test_a_vehicle_inside_one_initiation_circle_flies_the_other_and_arrives():
         assert t < 120.0
     assert math.hypot(x, y) < 1.0
     assert abs(math.degrees((psi + math.pi) % (2 * math.pi) - math.pi)) < 5.0
+
+
+def test_an_arc_tighter_than_the_initiation_circle_is_replaced_by_a_turn_in():
+    # 20.1 m from S, just outside the left circle (centre (-10, 0)), heading away from it:
+    # lemma 1's touching circle has a radius of 2.7 m (3.7 V^2 / R); the vehicle turns in at
+    # V^2 / R instead and never commands more than the circle's own command (plus the
+    # closed-loop circle following's transients).
+    plan = plan_midcourse(-20.1, 6.5, math.radians(-41.0), V, (0.0, 0.0), math.pi / 2, 10.0)
+    assert abs(plan.chosen.curvature_1_m) * 10.0 > 3.0
+    params = GuidanceParams(method="fixed_l1")
+    law = TwoPhaseGuidance(STRAIGHT_NORTH, params)
+    from companion.sim.simulator import unicycle_step
+
+    x, y, psi, t, a_max = -20.1, 6.5, math.radians(-41.0), 0.0, 0.0
+    stages = set()
+    while True:
+        out = law.step(t, VehicleState(x, y, psi, V))
+        if out.phase != "midcourse":
+            break
+        stages.add(out.extra["stage"])
+        a_max = max(a_max, abs(out.a_cmd_m_s2))
+        x, y, psi = unicycle_step(x, y, psi, V, out.a_cmd_m_s2, 0.02)
+        t += 0.02
+        assert t < 200.0
+    assert "turn_in" in stages
+    assert a_max <= 1.05 * V * V / 10.0
+    assert math.hypot(x, y) < 1.0
