@@ -256,6 +256,8 @@ class Link:
 
     # pymavlink calls write() with each packed frame.
     def write(self, buf: bytes) -> None:
+        if not self.peers:
+            return  # a udpin link with no ground station yet: nothing is sent, nothing recorded
         for peer in list(self.peers):
             try:
                 self.sock.sendto(buf, peer)
