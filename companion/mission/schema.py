@@ -181,7 +181,7 @@ PATH = Tagged(
                 "points_m": Field(Array(_XY, 2, MAX_POINTS), "points [x_m, y_m] in the mission frame"),
                 "points_deg": Field(Array(_LATLON, 2, MAX_POINTS),
                                     "points [lat_deg, lon_deg] (frame: geodetic only)"),
-                "corner_radius_m": Field(_POSITIVE, "round each corner with an arc of this radius "
+                "corner_radius_m": Field(Number(exclusive_minimum=0, maximum=10000), "round each corner with an arc of this radius "
                                          "(and curvature ramps) instead of a spline"),
                 "closed": Field(Boolean(), "a loop: the last point joins the first", default=False),
             },
@@ -195,7 +195,8 @@ PATH = Tagged(
                 "start_m": Field(_XY, "first point [x_m, y_m]", default=[0.0, 0.0]),
                 "start_heading_deg": Field(_FINITE, "heading at the first point, in the frame's angle "
                                            "convention", default=0.0),
-                "blend_m": Field(_POSITIVE, "length of each curvature ramp (clothoid) replacing a "
+                "blend_m": Field(Number(exclusive_minimum=0, maximum=1000), "length of each curvature "
+                                 "ramp (clothoid) replacing a "
                                  "curvature jump", default=5.0),
                 "segments": Field(
                     Array(
@@ -205,14 +206,16 @@ PATH = Tagged(
                                     fields={
                                         "type": Field(String(enum=("line",)), "segment kind",
                                                       required=True),
-                                        "length_m": Field(_POSITIVE, "length", required=True),
+                                        "length_m": Field(Number(exclusive_minimum=0, maximum=100000), "length",
+                                                          required=True),
                                     },
                                 ),
                                 "arc": Object(
                                     fields={
                                         "type": Field(String(enum=("arc",)), "segment kind",
                                                       required=True),
-                                        "radius_m": Field(_POSITIVE, "radius", required=True),
+                                        "radius_m": Field(Number(exclusive_minimum=0, maximum=100000), "radius",
+                                                          required=True),
                                         "turn_deg": Field(
                                             Number(minimum=-360, maximum=360, nonzero=True),
                                             "turn angle, positive = left in ENU (anticlockwise)",
@@ -404,7 +407,7 @@ def _validate(value, spec, path, problems):
             problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
             return None
         kind = value.get(spec.tag)
-        if kind not in spec.variants:
+        if not isinstance(kind, str) or kind not in spec.variants:
             problems.append((_join(path, spec.tag),
                              f"expected one of {', '.join(spec.variants)}, got {_got(kind)}"))
             return None
