@@ -43,7 +43,7 @@ from companion.io.link import (
 )
 from companion.io.tlog import TlogWriter, default_tlog_path
 from companion.loop.scheduler import FixedRateScheduler, MonotonicClock
-from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
+from companion.loop.tick import TickConfig, coast_setpoint, compute_tick, hold_for
 from companion.sim.metrics import tracking_metrics
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
@@ -326,11 +326,14 @@ class FlightRunner:
 
     def _hold_now(self, config: TickConfig) -> None:
         """Send one hold setpoint (zero velocity, altitude held) for the pre-stream."""
-        from companion.io.setpoints import hold_setpoint
-
         p = self.link.state.position
         alt = -p.z_ned_m if p is not None else math.nan
-        self._send(hold_setpoint(alt, config.altitude_hold if p is not None else None))
+        course = 0.0
+        if p is not None and math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) > config.min_course_speed_m_s:
+            course = frames.course_enu_from_vel_ned(p.vx_ned_m_s, p.vy_ned_m_s)
+        elif self.link.state.yaw_ned_rad is not None:
+            course = frames.course_enu_from_ned(self.link.state.yaw_ned_rad)
+        self._send(hold_for(config, alt, p is not None, course))
 
     def _send(self, sp) -> None:
         self.link.send_setpoint(sp)

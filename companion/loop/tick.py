@@ -9,7 +9,7 @@ tlog as ``DEBUG_FLOAT_ARRAY "guidance"`` (layout: ``DEBUG_FIELDS``, documented i
 Rules applied here (and therefore identically in flight and in replay):
 
 * no sample, or a sample older than ``stale_s`` -> **hold** (zero velocity, zero yaw rate,
-  altitude still held), the guidance is not stepped;
+  altitude still held; wings level for the attitude output), the guidance is not stepped;
 * the course handed to the guidance is the direction of the measured ground velocity; below
   ``min_course_speed_m_s`` it falls back to the attitude yaw, then to the previous course;
 * the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V);
@@ -185,7 +185,7 @@ def compute_tick(
     course = prev_course_rad
     course_cmd = math.nan
     if hold_reason:
-        setpoint = hold_setpoint(alt_m, config.altitude_hold if sample is not None else None)
+        setpoint = hold_for(config, alt_m, sample is not None, prev_course_rad)
         phase = "hold"
     else:
         course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
@@ -195,7 +195,7 @@ def compute_tick(
         phase = output.phase
         a_cmd = float(output.a_cmd_m_s2)
         if phase == "finished" or not math.isfinite(a_cmd):
-            setpoint = hold_setpoint(alt_m, config.altitude_hold)
+            setpoint = hold_for(config, alt_m, True, course)
         elif config.output == "attitude":
             setpoint = attitude_setpoint(a_cmd, course, config.max_bank_deg, config.thrust)
         else:
@@ -215,6 +215,16 @@ def compute_tick(
     return result
 
 
+def hold_for(config: TickConfig, alt_m: float, have_sample: bool,
+             course_enu_rad: float) -> VelocitySetpoint | AttitudeSetpoint:
+    """The hold of this output: zero velocity and yaw rate (copter, rover; altitude held when a
+    sample exists), or wings level on the last course (plane: it cannot stop; the autopilot's own
+    setpoint-loss failsafe takes over if the hold lasts)."""
+    if config.output == "attitude":
+        return attitude_setpoint(0.0, course_enu_rad, config.max_bank_deg, config.thrust)
+    return hold_setpoint(alt_m, config.altitude_hold if have_sample else None)
+
+
 def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sample_age_s: float,
                    config: TickConfig, course_cmd_rad: float) -> VelocitySetpoint | AttitudeSetpoint:
     """The setpoint for a tick whose guidance step has not finished yet (a slow re-optimisation).
@@ -226,7 +236,7 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     alt_m = -sample.z_ned_m if sample is not None else math.nan
     if (sample is None or not (sample_age_s <= config.stale_s) or last is None or last.output is None
             or last.phase in ("finished", "hold") or not math.isfinite(last.output.a_cmd_m_s2)):
-        return hold_setpoint(alt_m, config.altitude_hold if sample is not None else None)
+        return hold_for(config, alt_m, sample is not None, last.course_rad if last is not None else 0.0)
     a_cmd = float(last.output.a_cmd_m_s2)
     if config.output == "attitude":
         return attitude_setpoint(a_cmd, last.course_rad, config.max_bank_deg, config.thrust)
