@@ -1,0 +1,107 @@
+"""The per-tick function shared by the live loop and replay: hand-computed inputs and outputs."""
+
+import math
+
+import pytest
+
+from companion.guidance.types import GuidanceOutput
+from companion.io.state import PositionSample
+from companion.loop.tick import DEBUG_FIELDS, TickConfig, coast_setpoint, compute_tick
+
+IDX = {name: i for i, name in enumerate(DEBUG_FIELDS)}
+CFG = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0, stale_s=0.3)
+
+
+class ConstantTurn:
+    def __init__(self, a=1.0, phase="close_range"):
+        self.a, self.phase, self.calls = a, phase, []
+
+    def step(self, t_s, state):
+        self.calls.append((t_s, state))
+        return GuidanceOutput(a_cmd_m_s2=self.a, phase=self.phase, crosstrack_m=state.y_m,
+                              s_proj_m=state.x_m, k1=0.5, k2=2.0)
+
+
+def sample(x_ned=0.0, y_ned=0.0, z_ned=-10.0, vx=0.0, vy=5.0, t_ms=1000):
+    return PositionSample(t_ms, x_ned, y_ned, z_ned, vx, vy, 0.0, received_s=0.0)
+
+
+def test_fresh_sample_flying_east_turning_left():
+    g = ConstantTurn(a=1.0)
+    r = compute_tick(g, 7, 0.14, sample(x_ned=2.0, y_ned=3.0), 0.01, CFG)
+    (t, st), = g.calls
+    assert (t, st.x_m, st.y_m, st.course_rad, st.speed_m_s) == (0.14, 3.0, 2.0, 0.0, 5.0)
+    assert r.phase == "close_range" and not r.is_hold
+    # course one tick ahead: a / V * dt = 1/5 * 0.02 = 0.004 rad left of east
+    assert r.course_cmd_rad == pytest.approx(0.004)
+    assert r.setpoint.yaw_rate_ned_rad_s == pytest.approx(-0.2)
+    row = r.debug
+    assert len(row) == len(DEBUG_FIELDS)
+    assert row[IDX["tick"]] == 7 and row[IDX["phase_code"]] == 1
+    assert row[IDX["x_enu_m"]] == 3.0 and row[IDX["y_enu_m"]] == 2.0
+    assert row[IDX["k1"]] == 0.5 and row[IDX["k2"]] == 2.0
+    assert row[IDX["ve_cmd_m_s"]] == pytest.approx(5 * math.cos(0.004))
+    assert row[IDX["alt_m"]] == 10.0 and row[IDX["hold_reason"]] == 0
+    assert math.isnan(row[IDX["prev_course_cmd_rad"]])
+
+
+@pytest.mark.parametrize("age, reason", [(0.31, "stale"), (math.inf, "stale"), (math.nan, "stale")])
+def test_old_sample_holds_without_stepping_the_guidance(age, reason):
+    g = ConstantTurn()
+    r = compute_tick(g, 0, 0.0, sample(), age, CFG)
+    assert g.calls == []
+    assert r.is_hold and r.hold_reason == reason and r.setpoint.is_hold
+    assert r.debug[IDX["phase_code"]] == 3 and r.debug[IDX["hold_reason"]] == 1
+
+
+def test_no_sample_yet_holds():
+    g = ConstantTurn()
+    r = compute_tick(g, 0, 0.0, None, math.inf, CFG)
+    assert g.calls == [] and r.hold_reason == "no_position" and r.setpoint.vz_ned_m_s == 0.0
+
+
+def test_sample_exactly_at_the_limit_is_still_used():
+    g = ConstantTurn()
+    r = compute_tick(g, 0, 0.0, sample(), 0.3, CFG)
+    assert len(g.calls) == 1 and not r.is_hold
+
+
+def test_commanded_course_integrates_across_ticks_despite_a_lagging_measurement():
+    """Measured course stuck at 0 (a slow velocity loop): the command keeps turning at a/V."""
+    g = ConstantTurn(a=1.0)
+    prev_cmd = None
+    for k in range(10):
+        r = compute_tick(g, k, k * 0.02, sample(), 0.0, CFG, prev_course_cmd_rad=prev_cmd)
+        prev_cmd = r.course_cmd_rad
+    assert prev_cmd == pytest.approx(10 * 0.004)
+
+
+def test_commanded_course_lead_is_clamped():
+    g = ConstantTurn(a=0.0)
+    r = compute_tick(g, 0, 0.0, sample(), 0.0, CFG, prev_course_cmd_rad=2.0)
+    assert r.course_cmd_rad == pytest.approx(math.pi / 4)
+
+
+def test_slow_vehicle_uses_yaw_for_the_course():
+    g = ConstantTurn()
+    compute_tick(g, 0, 0.0, sample(vx=0.0, vy=0.1), 0.0, CFG, yaw_ned_rad=math.pi)  # facing south
+    assert g.calls[0][1].course_rad == pytest.approx(-math.pi / 2)
+
+
+def test_finished_phase_sends_a_hold():
+    r = compute_tick(ConstantTurn(phase="finished"), 0, 0.0, sample(), 0.0, CFG)
+    assert r.phase == "finished" and r.setpoint.is_hold
+
+
+def test_coast_keeps_turning_but_never_on_stale_data():
+    g = ConstantTurn(a=1.0)
+    last = compute_tick(g, 0, 0.0, sample(), 0.0, CFG)
+    sp = coast_setpoint(last, sample(), 0.02, CFG, last.course_cmd_rad)
+    assert sp.course_cmd_enu_rad == pytest.approx(0.008)
+    assert coast_setpoint(last, sample(), 0.5, CFG, last.course_cmd_rad).is_hold
+
+
+def test_attitude_output_holds_wings_level():
+    cfg = TickConfig(speed_m_s=15.0, rate_hz=50.0, altitude_m=50.0, output="attitude")
+    r = compute_tick(ConstantTurn(), 0, 0.0, sample(), 1.0, cfg, prev_course_rad=0.0)
+    assert r.is_hold and r.setpoint.roll_ned_rad == 0.0
