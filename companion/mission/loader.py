@@ -129,6 +129,11 @@ def check_mission_text(text: str, source_name: str = "<mission>"):
                       f"got {len(text)}"], []
     if "\x00" in text:
         return None, [f"{source_name}: expected a YAML text file, got binary data"], []
+    first_line = next((line.strip() for line in text.splitlines()
+                       if line.strip() and not line.lstrip().startswith("#")), "")
+    if first_line.startswith("QGC WPL"):
+        return None, [f"{source_name}: expected a mission YAML, got a QGC WPL waypoint file; convert "
+                      f"it with: companion mission import {source_name} -o mission.yaml"], []
     try:
         doc = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.MarkedYAMLError as err:
@@ -142,6 +147,10 @@ def check_mission_text(text: str, source_name: str = "<mission>"):
         got = "an empty file" if doc is None else f"{schema._got(doc)}"
         return None, [f"{source_name}: expected a YAML mapping of mission keys (name, speed_m_s, "
                       f"path, ...), got {got}"], []
+
+    if doc.get("fileType") == "Plan":
+        return None, [f"{source_name}: expected a mission YAML, got a QGroundControl .plan; convert "
+                      f"it with: companion mission import {source_name} -o mission.yaml"], []
 
     clean, found = schema.validate(doc)
     problems = [f"{source_name}: {where}: {msg}" for where, msg in found]
