@@ -18,7 +18,8 @@ Two kinds of log are understood:
     sample age is the tlog time between the sample and the setpoint.
 
 Samples whose fields the live link would have rejected (NaN, out of range; see
-:func:`companion.io.state.position_problem`) are ignored here too.
+:func:`companion.io.state.position_problem`) are ignored here too, and so are positions and
+attitudes from senders whose HEARTBEAT says they are no autopilot (a ground station, a camera).
 """
 
 from __future__ import annotations
@@ -137,8 +138,8 @@ def read_flight(
     Raises :class:`LogError` when the file has no setpoints to compare (or cannot be read).
     """
     path = Path(path)
-    reader = TlogReader(path, decode_ids={ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT, ID_HEARTBEAT}, on_warning=on_warning,
-                        light=True)
+    wanted = {ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT, ID_HEARTBEAT}
+    reader = TlogReader(path, decode_ids=wanted, on_warning=on_warning, light=True)
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
     newest_yaw: dict[int, float] = {}
@@ -168,7 +169,7 @@ def read_flight(
                 if sample is not None:
                     samples_by_ms.setdefault(rec.src_system, {})[sample.time_boot_ms] = sample
                     newest_sample[rec.src_system] = (rec.time_s, sample)
-            elif mid == ID_ATTITUDE:
+            elif mid == ID_ATTITUDE and (rec.src_system, rec.src_component) not in not_autopilots:
                 if math.isfinite(msg.yaw):
                     newest_yaw[rec.src_system] = msg.yaw
             elif mid == ID_SPT:
