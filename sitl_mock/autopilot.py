@@ -176,7 +176,8 @@ class MockAutopilot:
             link.stream_interval_s.pop(msgid, None)
             link.stream_next_s.pop(msgid, None)
             return
-        interval_s = max(interval_s, 1.0 / MAX_STREAM_HZ)
+        # A message goes out at most once per physics step (and at most 400 Hz).
+        interval_s = max(interval_s, 1.0 / MAX_STREAM_HZ, self.dt_s)
         link.stream_interval_s[msgid] = interval_s
         link.stream_next_s[msgid] = self.sim_t_s
 

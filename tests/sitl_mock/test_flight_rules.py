@@ -260,3 +260,17 @@ def test_out_of_range_velocity_setpoints_are_clamped_to_the_vehicle_limits():
     assert math.hypot(v[0], v[1]) == pytest.approx(12.0, abs=1e-6)
     assert v[2] == pytest.approx(-fl.VERTICAL_SPEED_UP_MAX_M_S, abs=1e-6)
     assert all(math.isfinite(c) for c in f.model.state.pos_ned_m)
+
+
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_plane_takes_off_from_the_ground_then_loiters_at_the_target_altitude(autopilot):
+    f = make(autopilot, vehicle="plane", airborne=False)
+    assert f.arm(True) == fl.MAV_RESULT_ACCEPTED
+    assert f.takeoff(30.0 if autopilot == "ardupilot" else 488.0 + 30.0, 488.0) == fl.MAV_RESULT_ACCEPTED
+    advance(f, 1.0)
+    s = f.model.state
+    assert s.on_ground and s.pos_ned_m[0] > 0.0  # rolling along the runway (heading north)
+    advance(f, 60.0)
+    assert f.mode == f.pers.hold_mode
+    assert -f.model.state.pos_ned_m[2] == pytest.approx(30.0, abs=1.0)
+    assert f.model.state.airspeed_m_s >= 10.0
