@@ -156,6 +156,7 @@ def check_mission_text(text: str, source_name: str = "<mission>"):
     problems = [f"{source_name}: {where}: {msg}" for where, msg in found]
     warnings: list[str] = []
     builder = _Builder(clean, source_name, problems, warnings)
+    builder.origin_absent = "origin" not in doc
     builder.path_schema_ok = not any(where == "path" or where.startswith(("path.", "path["))
                                      for where, _ in found)
     mission = builder.build(text)
@@ -174,6 +175,7 @@ class _Builder:
         self.warnings = warnings
         self.frame = doc.get("frame") or "local_enu"
         self.path_schema_ok = True  # False when the schema already reported a problem in path
+        self.origin_absent = True  # False when the file has an origin key (even an unusable one)
 
     def problem(self, where: str, message: str) -> None:
         self.problems.append(f"{self.source}: {where}: {message}")
@@ -222,8 +224,8 @@ class _Builder:
     def build_origin(self) -> GeodeticOrigin | None:
         origin = self.doc.get("origin")
         if self.frame == "geodetic":
-            if origin is None:
-                if "origin" not in self.doc or self.doc["origin"] is None:
+            if origin is None:  # absent (report it) or unusable (the schema reported it)
+                if self.doc.get("origin") is None and self.origin_absent:
                     self.problem("origin", "missing; expected {lat_deg, lon_deg, alt_m} for frame: geodetic")
                 return None
             if any(origin.get(k) is None for k in ("lat_deg", "lon_deg", "alt_m")):
@@ -333,8 +335,6 @@ class _Builder:
         u = np.array([lo, lo + eps, hi - eps, hi])
         x, y = fx(u), fy(u)
         gap = math.hypot(x[3] - x[0], y[3] - y[0])
-        scale = max(1.0, float(np.ptp(fx(np.linspace(lo, hi, 101)))),
-                    float(np.ptp(fy(np.linspace(lo, hi, 101)))))
         if gap > 1e-3:
             self.problem("path.closed", f"expected the curve to end where it starts for closed: true, "
                          f"got a gap of {gap:.4g} m")
@@ -342,7 +342,7 @@ class _Builder:
         h0 = math.atan2(y[1] - y[0], x[1] - x[0])
         h1 = math.atan2(y[3] - y[2], x[3] - x[2])
         turn = math.degrees(math.remainder(h1 - h0, 2 * math.pi))
-        if abs(turn) > 1.0 and scale > 0:
+        if abs(turn) > 1.0:
             self.problem("path.closed", f"expected the same heading at both ends for closed: true, got "
                          f"a corner of {turn:.1f} deg")
             return False
