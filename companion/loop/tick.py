@@ -26,6 +26,7 @@ Rules applied here (and therefore identically in flight and in replay):
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass, field
 
 from companion.geometry import frames
@@ -71,6 +72,7 @@ DEBUG_FIELDS = (
     "course_cmd_enu_rad",    # 22 commanded course (velocity setpoint direction), NaN when none
     "prev_course_cmd_rad",   # 23 the prev_course_cmd_rad this tick was given (NaN for None)
     "prev_course_rad",       # 24 the prev_course_rad this tick was given
+    "t_s_residual",          # 25 t_s - float32(t_s): field 1 + field 25 restores the float64 t_s
 )
 
 
@@ -244,6 +246,11 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     return velocity_setpoint(a_cmd, base, config.speed_m_s, config.dt_s, alt_m, config.altitude_hold)
 
 
+def _float32(x: float) -> float:
+    """``x`` rounded to the nearest float32 (what DEBUG_FLOAT_ARRAY stores)."""
+    return struct.unpack("<f", struct.pack("<f", x))[0] if math.isfinite(x) else x
+
+
 def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float,
               prev_course_cmd_rad: float = math.nan, prev_course_rad: float = math.nan) -> list[float]:
     """The ``DEBUG_FIELDS`` row of a tick (NaN where a field does not apply)."""
@@ -285,6 +292,7 @@ def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float,
         float(result.course_cmd_rad),
         float(prev_course_cmd_rad),
         float(prev_course_rad),
+        float(result.t_s) - _float32(result.t_s),
     ]
     assert len(row) == len(DEBUG_FIELDS)
     return row

@@ -105,3 +105,16 @@ def test_attitude_output_holds_wings_level():
     cfg = TickConfig(speed_m_s=15.0, rate_hz=50.0, altitude_m=50.0, output="attitude")
     r = compute_tick(ConstantTurn(), 0, 0.0, sample(), 1.0, cfg, prev_course_rad=0.0)
     assert r.is_hold and r.setpoint.roll_ned_rad == 0.0
+
+
+def test_recorded_tick_time_restores_the_float64_time_through_float32_fields():
+    import struct
+
+    def f32(x):
+        return struct.unpack("<f", struct.pack("<f", x))[0]
+
+    for t in (0.02, 35.3, 1234.56789, 3599.98):
+        r = compute_tick(ConstantTurn(), 0, t, sample(), 0.0, CFG)
+        hi, lo = f32(r.debug[IDX["t_s"]]), f32(r.debug[IDX["t_s_residual"]])
+        assert abs((hi + lo) - t) < 1e-9
+    assert abs(f32(35.3) - 35.3) > 1e-7  # float32 alone loses it (the re-optimisation clock)
