@@ -118,3 +118,38 @@ guidance: {l1: 10}
     assert any(line.startswith("many.yaml: path.x_range_m: expected") for line in lines)
     assert any(line.startswith("many.yaml: guidance.l1: unknown key") for line in lines)
     assert len(lines) == 4
+
+
+def test_local_ned_function_gives_east_as_a_function_of_north():
+    text = """\
+name: ned-line
+frame: local_ned
+speed_m_s: 3
+path: {type: function, y_of_x: "0.5*x", x_range_m: [0, 40]}
+"""
+    m = parse_mission(text, "ned.yaml")
+    # east = 0.5 north: in ENU the line x = 0.5 y, from (0, 0) to (20, 40), heading atan2(1, 0.5).
+    assert m.path.end_xy_m == pytest.approx((20.0, 40.0), abs=1e-9)
+    assert m.path.start_heading_rad == pytest.approx(math.atan2(1.0, 0.5), abs=1e-9)
+    assert m.path.length_m == pytest.approx(math.hypot(20.0, 40.0), abs=1e-6)
+
+
+def test_geodetic_waypoints_in_degrees_match_points_in_metres():
+    from companion.geometry.geodetic import enu_from_geodetic
+
+    origin = (47.3977419, 8.5455939, 488.0)
+    deg = [(47.3980, 8.5460), (47.3990, 8.5470), (47.3995, 8.5490)]
+    text = f"""\
+name: geo
+frame: geodetic
+origin: {{lat_deg: {origin[0]}, lon_deg: {origin[1]}, alt_m: {origin[2]}}}
+speed_m_s: 5
+altitude_m: 30
+path: {{type: waypoints, points_deg: {[list(p) for p in deg]}}}
+"""
+    m = parse_mission(text, "geo.yaml")
+    assert (m.origin.lat_deg, m.origin.lon_deg, m.origin.alt_m) == origin
+    for lat, lon in deg:
+        e, n, _ = enu_from_geodetic(lat, lon, origin[2] + 30.0, *origin)
+        px, py = m.path.point(m.path.project(float(e), float(n)))
+        assert math.hypot(px - float(e), py - float(n)) < 1e-3
