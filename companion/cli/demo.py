@@ -31,7 +31,7 @@ def register(subparsers) -> None:
     p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4",
                    help="personality of the mock autopilot (default px4)")
     p.add_argument("--vehicle", choices=("copter", "rover", "plane"), default="copter")
-    p.add_argument("--speedup", type=float, default=4.0, help="simulated time per wall second (default 4)")
+    p.add_argument("--speedup", type=float, default=3.0, help="simulated time per wall second (default 3)")
     p.add_argument("--tau-vel-s", type=float, default=0.3, help="mock velocity-loop time constant (default 0.3)")
     p.add_argument("--a-max-m-s2", type=float, default=10.0, help="mock acceleration limit (default 10)")
     p.add_argument("--plot", default=None, help="PNG path (default: beside the tlog)")

@@ -76,6 +76,7 @@ class FlyOptions:
     tlog_path: str | None = None
     max_duration_s: float | None = None
     offboard_prestream_s: float = 1.0
+    max_coast_turn_s: float = 0.3  # coasting keeps turning this long (loop clock), then flies straight
     attitude_rate_hz: float = 20.0
 
     def __post_init__(self) -> None:
@@ -454,6 +455,7 @@ class FlightRunner:
         prev_course_cmd = None
         pending = None
         last_result = None
+        coast_since: float | None = None
         worker = self._worker
         prev_course = self.mission.path.start_heading_rad
         p = self.link.state.position
@@ -513,10 +515,14 @@ class FlightRunner:
                     break
                 # A late result (its tick already coasted): compute this tick afresh.
             if result is not None:
+                coast_since = None
                 self._send(result.setpoint)
             else:
+                if coast_since is None:
+                    coast_since = now
                 sp = coast_setpoint(last_result, sample, age, config,
-                                    prev_course_cmd if prev_course_cmd is not None else math.nan)
+                                    prev_course_cmd if prev_course_cmd is not None else math.nan,
+                                    turning=(now - coast_since) <= self.opt.max_coast_turn_s)
                 self._send(sp)
                 self.coast_ticks += 1
                 prev_course_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)

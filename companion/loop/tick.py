@@ -228,18 +228,21 @@ def hold_for(config: TickConfig, alt_m: float, have_sample: bool,
 
 
 def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sample_age_s: float,
-                   config: TickConfig, course_cmd_rad: float) -> VelocitySetpoint | AttitudeSetpoint:
+                   config: TickConfig, course_cmd_rad: float,
+                   turning: bool = True) -> VelocitySetpoint | AttitudeSetpoint:
     """The setpoint for a tick whose guidance step has not finished yet (a slow re-optimisation).
 
     Keeps turning at the last commanded acceleration from the commanded course (the zero-order hold
     of ``a_cmd`` the offline simulator assumes), so a slow step never freezes the velocity vector.
+    With ``turning=False`` (the runner's choice once a coast has lasted ``max_coast_turn_s``) it
+    flies straight on the commanded course instead: a long stall must not become a full circle.
     Stale or missing data, or a last tick that was a hold or the end, give a hold.
     """
     alt_m = -sample.z_ned_m if sample is not None else math.nan
     if (sample is None or not (sample_age_s <= config.stale_s) or last is None or last.output is None
             or last.phase in ("finished", "hold") or not math.isfinite(last.output.a_cmd_m_s2)):
         return hold_for(config, alt_m, sample is not None, last.course_rad if last is not None else 0.0)
-    a_cmd = float(last.output.a_cmd_m_s2)
+    a_cmd = float(last.output.a_cmd_m_s2) if turning else 0.0
     if config.output == "attitude":
         return attitude_setpoint(a_cmd, last.course_rad, config.max_bank_deg, config.thrust)
     base = course_cmd_rad if math.isfinite(course_cmd_rad) else last.course_rad

@@ -118,3 +118,9 @@ def test_recorded_tick_time_restores_the_float64_time_through_float32_fields():
         hi, lo = f32(r.debug[IDX["t_s"]]), f32(r.debug[IDX["t_s_residual"]])
         assert abs((hi + lo) - t) < 1e-9
     assert abs(f32(35.3) - 35.3) > 1e-7  # float32 alone loses it (the re-optimisation clock)
+
+
+def test_a_long_coast_flies_straight_instead_of_circling():
+    last = compute_tick(ConstantTurn(a=3.0), 0, 0.0, sample(), 0.0, CFG)
+    sp = coast_setpoint(last, sample(), 0.02, CFG, 0.5, turning=False)
+    assert sp.course_cmd_enu_rad == pytest.approx(0.5) and sp.yaw_rate_ned_rad_s == 0.0
