@@ -144,15 +144,42 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
                    "pass --mission M.yaml")
 
 
-def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity") -> TickConfig:
-    """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
-    (``"velocity"`` or ``"attitude"``).
+DEFAULT_STALE_S = 0.3  # the runner's --stale-s default
 
-    The live runner adds ``--stale-s`` and ``--max-bank-deg`` from its command line; the log does
-    not record them, so replay uses their defaults (0.3 s, 35 deg).
+
+def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
+                    stale_s: float = DEFAULT_STALE_S) -> TickConfig:
+    """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
+    (``"velocity"`` or ``"attitude"``) and the stale-position limit ``stale_s``.
+
+    ``--max-bank-deg`` is not recorded in the log; replay uses its default (35 deg).
     """
     return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                      output=output)
+                      output=output, stale_s=stale_s)
+
+
+def flight_stale_s(flight: LoggedFlight) -> float:
+    """A stale-position limit that reproduces the flight's hold decisions.
+
+    The runner's ``--stale-s`` is not recorded, but every tick records its sample age and whether
+    it held for a stale sample: the limit lies in ``[largest age that did not hold, smallest age
+    that did)``. The default 0.3 s is used when it lies in that interval (or nothing is known),
+    else the lower end.
+    """
+    flown, held = [], []
+    for tk in flight.ticks:
+        age = tk.debug_value("sample_age_s")
+        if not math.isfinite(age):
+            continue
+        if tk.debug_value("hold_reason") == 1.0:
+            held.append(age)
+        elif tk.debug_value("phase_code") != 3.0 and tk.sample is not None:
+            flown.append(age)
+    low = max(flown, default=0.0)
+    high = min(held, default=math.inf)
+    if low <= DEFAULT_STALE_S < high or low >= high:
+        return DEFAULT_STALE_S
+    return low if low > 0 else DEFAULT_STALE_S
 
 
 def flight_output(flight: LoggedFlight) -> str:
@@ -216,6 +243,8 @@ def replay_flight(
     """
     started = time.perf_counter()
     rate_hz = config.rate_hz if config is not None else flight_rate_hz(flight, mission)
+    if config is None and flight.kind == "companion":
+        config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight))
     config = config or tick_config_for(mission, rate_hz, flight_output(flight))
     guidance = guidance_factory(mission, rate_hz)
     path = mission.path

@@ -81,6 +81,8 @@ def write_synthetic_flight(
     start_offset_m: tuple[float, float] = (0.0, 3.0),
     vehicle_lag_s: float = 0.2,
     output: str = "velocity",
+    dropout_s: tuple[float, float] | None = None,
+    stale_s: float = 0.3,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -93,6 +95,9 @@ def write_synthetic_flight(
     vehicle_lag_s : time constant of the vehicle's velocity response (0: immediate).
     output : ``"velocity"`` (SET_POSITION_TARGET_LOCAL_NED, copter) or ``"attitude"``
         (SET_ATTITUDE_TARGET, fixed wing: the vehicle turns at ``g tan(bank) / V``).
+    dropout_s : ``(start, end)`` tick times between which the position stream stops (the loop
+        keeps the last sample, ageing, and holds once it is older than ``stale_s``).
+    stale_s : the loop's stale-position limit (the runner's ``--stale-s``).
 
     Returns
     -------
@@ -107,7 +112,7 @@ def write_synthetic_flight(
     Path(str(tlog_path) + ".mission.yaml").write_text(mission.source_text, encoding="utf-8")
     guidance = make_guidance(mission, rate_hz)
     config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                        output=output)
+                        output=output, stale_s=stale_s)
     dt = 1.0 / rate_hz
     autopilot = PacketEncoder(1, 1)
     companion = PacketEncoder(1, 191)
@@ -133,22 +138,26 @@ def write_synthetic_flight(
                 tlog.write(companion.heartbeat_packet(MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID),
                            unix - 0.001)
             # the autopilot's sample, as it crosses the wire (float32)
-            fields = _float32(y, x, -alt, vn, ve, 0.0)
-            tlog.write(autopilot.local_position_ned_packet(boot_ms, *fields), unix - SAMPLE_AGE_S)
+            if dropout_s is None or not (dropout_s[0] <= t_grid < dropout_s[1]):
+                fields = _float32(y, x, -alt, vn, ve, 0.0)
+                tlog.write(autopilot.local_position_ned_packet(boot_ms, *fields), unix - SAMPLE_AGE_S)
+                sample = PositionSample(boot_ms, *fields)
+                sample_t = t_grid
             if k % 5 == 0:
                 yaw_ned = frames.yaw_ned_from_enu(math.atan2(vn, ve))
                 tlog.write(autopilot.attitude_packet(boot_ms, 0.0, 0.0, yaw_ned), unix - SAMPLE_AGE_S / 2)
                 yaw_seen = _float32(yaw_ned)[0]
-            sample = PositionSample(boot_ms, *fields)
             t_s = t_grid + TICK_JITTER_S * math.sin(0.7 * k)
-            res = compute_tick(guidance, k, t_s, sample, SAMPLE_AGE_S, config,
+            age = SAMPLE_AGE_S + (t_grid - sample_t)
+            res = compute_tick(guidance, k, t_s, sample, age, config,
                                yaw_ned_rad=yaw_seen, prev_course_rad=prev_course,
                                prev_course_cmd_rad=prev_course_cmd)
             prev_course = res.course_rad
             prev_course_cmd = res.course_cmd_rad
             sp = res.setpoint
             # as the runner: the tick's guidance row, then its setpoint
-            tlog.write(companion.debug_float_array_packet("guidance", k, boot_ms * 1000, res.debug), unix)
+            tlog.write(companion.debug_float_array_packet("guidance", k, sample.time_boot_ms * 1000, res.debug),
+                       unix)
             if output == "attitude":
                 tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), unix + 20e-6)
                 # coordinated turn at the commanded bank (NED roll: right wing down positive)

@@ -290,3 +290,26 @@ def test_interleaved_second_vehicle_and_ground_station_do_not_disturb_the_replay
     result = replay_log(busy)
     assert result.flight.warnings == []
     assert result.within_tolerance and result.steps_compared == int(FLIGHT_S * 50)
+
+
+def test_position_dropout_holds_are_replayed_with_the_flights_stale_limit(tmp_path):
+    """The stream stops from 4.0 s to 5.0 s; the flight ran with --stale-s 0.5 (not recorded).
+    Ticks with 0.3 < age <= 0.5 s flew on, older ones held: replay must infer a limit that
+    reproduces both, and with the default 0.3 s it would not."""
+    from companion.mission import load_mission
+    from companion.replay.flightlog import read_flight
+    from companion.replay.replay import replay_flight, tick_config_for
+
+    path = tmp_path / "dropout.tlog"
+    write_synthetic_flight(path, duration_s=12.0, dropout_s=(4.0, 5.0), stale_s=0.5)
+    j = replay_log(path).to_json()
+    assert j["within_tolerance"] is True
+    switches = [(s["from"], s["to"], round(s["time_s"], 2)) for s in j["phase_switches"]["logged"]]
+    # the last sample is from t = 3.98 s, 4 ms old then: it passes 0.5 s at t = 4.476 s (tick 4.48)
+    assert switches == [("close_range", "hold", 4.48), ("hold", "close_range", 5.0)]
+    assert j["phase_switches"]["replayed"] == j["phase_switches"]["logged"]
+
+    mission = load_mission(str(path) + ".mission.yaml")
+    default = replay_flight(read_flight(path), mission, config=tick_config_for(mission, 50.0))
+    assert default.first_divergence is not None and default.first_divergence["reasons"][-1] == "phase"
+    assert default.first_divergence["time_s"] == pytest.approx(4.28, abs=0.011)  # age first > 0.3 s
