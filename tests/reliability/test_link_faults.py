@@ -73,12 +73,13 @@ def test_twenty_percent_loss_with_reordering_and_duplication_still_converges_ont
            d_max_m=summary["d_max_m"], tail_xtrack_max_m=max(tail), hold_ticks=summary["hold_ticks"])
 
 
-def test_one_second_position_blackout_holds_then_resumes(tmp_path):
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_one_second_position_blackout_holds_then_resumes(tmp_path, autopilot):
     port = free_udp_port()
     mission = write_mission(tmp_path)
     comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "4.5", "--stale-s", "0.3")
     with FaultProxy(port) as proxy:
-        mock = Mock(f"udpout:127.0.0.1:{proxy.port}")
+        mock = Mock(f"udpout:127.0.0.1:{proxy.port}", autopilot=autopilot)
         try:
             comp.wait_flying()
             time.sleep(1.0)
@@ -110,7 +111,7 @@ def test_one_second_position_blackout_holds_then_resumes(tmp_path):
     assert all(abs(r.data[F_XTRACK]) < 0.5 for r in resumed)
     # Hold ticks in the summary match the records; no hold outside the blackout.
     assert summary["hold_ticks"] == len(holds)
-    record("position_blackout", blackout_s=1.0, stale_s=0.3,
+    record("position_blackout", autopilot=autopilot, blackout_s=1.0, stale_s=0.3,
            last_position_to_hold_s=stale_to_hold, blackout_start_to_hold_s=first_hold - t_black0,
            positions_back_to_guidance_s=resumed[0]._timestamp - first_after, hold_ticks=len(holds))
 
