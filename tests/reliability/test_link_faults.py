@@ -67,8 +67,9 @@ def test_twenty_percent_loss_with_reordering_and_duplication_still_converges_ont
     assert tail and max(tail) < 0.5
     # No loss burst of 0.3 s at 50 Hz (15 in a row at 20 %: probability 3e-11): no hold.
     assert summary["hold_ticks"] == 0
-    # The mock kept receiving setpoints in OFFBOARD (its offboard-loss failsafe never fired).
-    assert mock_summary["rx_frames_ok"] > 0.7 * summary["setpoints_sent"] * 0.8
+    # The mock kept receiving setpoints (about 80 % of them get through, plus the duplicates) and
+    # stayed in OFFBOARD: otherwise the companion would have stopped on "pilot override".
+    assert mock_summary["rx_frames_ok"] >= 0.6 * summary["setpoints_sent"]
     record("loss_reorder_duplicate", proxy_up=dict(up), proxy_down=dict(down),
            d_max_m=summary["d_max_m"], tail_xtrack_max_m=max(tail), hold_ticks=summary["hold_ticks"])
 
