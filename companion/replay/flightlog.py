@@ -96,12 +96,30 @@ class LoggedTick:
 
 
 @dataclass
+class LoggedCoast:
+    """A setpoint the loop sent without a guidance result of its own: the tick *coasted* while a
+    slow guidance step was still running (``companion.loop.tick.coast_setpoint``).
+
+    ``after_tick`` is the index (in :attr:`LoggedFlight.ticks`) of the last guidance row recorded
+    before it: that row's result is the one the coast continues. ``sample`` is the newest position
+    received before it and ``sample_age_s`` the tlog time between the two.
+    """
+
+    time_unix_s: float
+    after_tick: int
+    sample: PositionSample | None
+    sample_age_s: float
+    setpoint: LoggedSetpoint | LoggedAttitude
+
+
+@dataclass
 class LoggedFlight:
     """The ticks of a logged flight plus what was noticed while reading it."""
 
     path: Path
     kind: str  # "companion" or "setpoints"
     ticks: list[LoggedTick]
+    coasts: list[LoggedCoast] = field(default_factory=list)
     warnings: list[LogWarning] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     records: int = 0
@@ -143,12 +161,14 @@ def read_flight(
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
     newest_yaw: dict[int, float] = {}
-    # per sender, in file order: (tlog time, LoggedSetpoint or LoggedTick, target system)
+    # per sender, in file order: (tlog time, LoggedSetpoint / LoggedAttitude / LoggedTick,
+    # (tlog time, newest sample of the target) for setpoints)
     events: dict[tuple[int, int], list[tuple]] = {}
     last_target: dict[tuple[int, int], int] = {}  # sender -> target system of its last setpoint
     not_autopilots: set[tuple[int, int]] = set()  # senders whose HEARTBEAT says MAV_AUTOPILOT_INVALID
     companion_ticks: list[LoggedTick] = []
     setpoint_ticks: list[LoggedTick] = []
+    coasts: list[LoggedCoast] = []
     notes: list[str] = []
     reconstructed = 0
     first_boot_ms = None
@@ -175,7 +195,7 @@ def read_flight(
             elif mid == ID_SPT:
                 sp = _setpoint(msg)
                 sender = (rec.src_system, rec.src_component)
-                events.setdefault(sender, []).append((rec.time_s, sp, msg.target_system))
+                events.setdefault(sender, []).append((rec.time_s, sp, newest_sample.get(msg.target_system)))
                 last_target[sender] = msg.target_system
                 found = newest_sample.get(msg.target_system)
                 if found is not None:
@@ -190,7 +210,8 @@ def read_flight(
             elif mid == ID_SAT:
                 sender = (rec.src_system, rec.src_component)
                 events.setdefault(sender, []).append(
-                    (rec.time_s, LoggedAttitude(tuple(msg.q), msg.thrust, msg.type_mask), msg.target_system))
+                    (rec.time_s, LoggedAttitude(tuple(msg.q), msg.thrust, msg.type_mask),
+                     newest_sample.get(msg.target_system)))
                 last_target[sender] = msg.target_system
             elif mid == ID_DFA:
                 name = msg.name.decode("ascii", "replace") if isinstance(msg.name, bytes) else str(msg.name)
@@ -224,14 +245,17 @@ def read_flight(
         raise LogError(f"{path}: no MAVLink records could be read ({reader.size_bytes} bytes)")
     if companion_ticks:
         kind, ticks = "companion", companion_ticks
-        unpaired_ticks, unpaired_setpoints = _pair_setpoints(events, _tick_rate_hz(companion_ticks))
+        unpaired_ticks, unpaired_setpoints, coasts = _pair_setpoints(events, _tick_rate_hz(companion_ticks),
+                                                                     companion_ticks)
         if unpaired_ticks:
             notes.append(f"{unpaired_ticks} recorded ticks have no setpoint of their own (a result that "
                          "arrived after its tick had coasted, or a damaged log): stepped, not compared")
-        if unpaired_setpoints:
-            notes.append(f"{unpaired_setpoints} setpoints were sent without a guidance record of their "
-                         "own (pre-stream, coasting while a slow step ran, holds outside the loop): "
-                         "not compared")
+        if coasts:
+            notes.append(f"{len(coasts)} setpoints were sent while a slow guidance step ran (coasting): "
+                         "compared with coast_setpoint of the previous result")
+        if unpaired_setpoints - len(coasts):
+            notes.append(f"{unpaired_setpoints - len(coasts)} setpoints were sent outside the guidance loop "
+                         "(before its first tick or after its last): not compared")
         if reconstructed:
             notes.append(f"{reconstructed} ticks used a LOCAL_POSITION_NED sample missing from the log; "
                          "rebuilt from the recorded internals (velocity approximate)")
@@ -242,7 +266,8 @@ def read_flight(
     else:
         raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED paired with a LOCAL_POSITION_NED; "
                        "nothing to replay")
-    return LoggedFlight(path, kind, ticks, list(reader.warnings), notes, reader.records)
+    return LoggedFlight(path, kind, ticks, coasts if kind == "companion" else [], list(reader.warnings),
+                        notes, reader.records)
 
 
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:
@@ -255,8 +280,9 @@ def _tick_rate_hz(ticks: list[LoggedTick]) -> float:
     return 1.0 / steps[len(steps) // 2]
 
 
-def _pair_setpoints(events: dict[tuple[int, int], list[tuple]], rate_hz: float) -> tuple[int, int]:
-    """Give each recorded tick the setpoint its sender sent with it.
+def _pair_setpoints(events: dict[tuple[int, int], list[tuple]], rate_hz: float,
+                    ticks: list[LoggedTick]) -> tuple[int, int, list[LoggedCoast]]:
+    """Give each recorded tick the setpoint its sender sent with it; find the coasting setpoints.
 
     The loop records a tick's guidance row and then sends that tick's setpoint, normally
     microseconds apart. A row recorded late (its step outlived its tick, which coasted) is
@@ -264,26 +290,39 @@ def _pair_setpoints(events: dict[tuple[int, int], list[tuple]], rate_hz: float) 
     setpoint sent only after the step budget (half a period) has run out. So a row is paired
     with the next record of the same sender when that is a setpoint less than
     :data:`PAIR_GAP_PERIODS` of a period later (a pair delayed longer by a busy machine is left
-    unpaired: not compared, never mis-compared).
-    Returns ``(rows without a setpoint, setpoints without a row)``.
+    unpaired: not compared, never mis-compared). The other setpoints of a sender between its first
+    and its last row are coasts.
+    Returns ``(rows without a setpoint, setpoints without a row, coasts)``.
     """
     max_gap_s = PAIR_GAP_PERIODS / rate_hz
+    index = {id(tk): i for i, tk in enumerate(ticks)}
     unpaired_rows = 0
     paired = 0
     setpoints = 0
+    coasts: list[LoggedCoast] = []
     for seq in events.values():
-        for i, (time_s, item, _) in enumerate(seq):
+        rows_at = [i for i, ev in enumerate(seq) if isinstance(ev[1], LoggedTick)]
+        first_row, last_row = (rows_at[0], rows_at[-1]) if rows_at else (len(seq), -1)
+        taken = set()
+        last_tick = None
+        for i, (time_s, item, newest) in enumerate(seq):
             if not isinstance(item, LoggedTick):
                 setpoints += 1
+                if i not in taken and first_row < i < last_row and last_tick is not None:
+                    sample_time, sample = newest if newest is not None else (math.nan, None)
+                    coasts.append(LoggedCoast(time_s, last_tick, sample, max(0.0, time_s - sample_time)
+                                              if sample is not None else math.inf, item))
                 continue
+            last_tick = index[id(item)]
             nxt = seq[i + 1] if i + 1 < len(seq) else None
             if nxt is not None and isinstance(nxt[1], (LoggedSetpoint, LoggedAttitude)) \
                     and nxt[0] - time_s <= max_gap_s:
                 item.setpoint = nxt[1]
+                taken.add(i + 1)
                 paired += 1
             else:
                 unpaired_rows += 1
-    return unpaired_rows, setpoints - paired
+    return unpaired_rows, setpoints - paired, coasts
 
 
 def phase_name(code: float) -> str:

@@ -40,7 +40,7 @@ import numpy as np
 from companion.errors import LogError
 from companion.io.logread import LogWarning
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
-from companion.loop.tick import TickConfig, compute_tick
+from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
 from companion.mission import Mission, load_mission
 from companion.replay.flightlog import (
     DEBUG_INDEX,
@@ -260,10 +260,38 @@ def replay_flight(
     prev_course_cmd = None
     s_hint = None
 
+    coasts = flight.coasts if companion_log else []
+    coast_next = 0
+    coast_diffs: list[dict] = []
+    last_res = None
+    runner_cmd = None  # the runner's prev_course_cmd: fresh results and coasts set it, late ones not
+
+    def replay_coasts_before(row: int) -> None:
+        """Replay the coasting setpoints sent after the previous row and before ``row``."""
+        nonlocal coast_next, runner_cmd, first_divergence
+        while coast_next < len(coasts) and coasts[coast_next].after_tick < row:
+            c = coasts[coast_next]
+            coast_next += 1
+            sp = coast_setpoint(last_res, c.sample, c.sample_age_s, config,
+                                runner_cmd if runner_cmd is not None else math.nan)
+            runner_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)
+            diff, reasons = _compare_setpoints(c.setpoint, sp, tolerance)
+            coast_diffs.append(diff)
+            if reasons and first_divergence is None:
+                prev = flight.ticks[c.after_tick]
+                first_divergence = {
+                    "time_s": float(prev.t_s + (c.time_unix_s - prev.time_unix_s)),
+                    "tick": int(prev.tick), "coast": True, "reasons": reasons,
+                    **{k: _json_float(v) for k, v in diff.items()},
+                    "logged": {k: _json_float(v) for k, v in _setpoint_fields(c.setpoint).items()},
+                    "replayed": {k: _json_float(v) for k, v in _setpoint_fields(sp).items()},
+                }
+
     with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
         for i, tk in enumerate(flight.ticks):
             if i % 1024 == 0:
                 bar.update_to(i)
+            replay_coasts_before(i)
             recorded_prev = tk.debug_value("prev_course_rad") if "prev_course_rad" in DEBUG_INDEX else math.nan
             if math.isfinite(recorded_prev):
                 # The loop records the course state each tick was given (it differs from the
@@ -277,6 +305,9 @@ def replay_flight(
                                prev_course_cmd_rad=prev_course_cmd)
             prev_course = res.course_rad
             prev_course_cmd = res.course_cmd_rad
+            last_res = res
+            if tk.setpoint is not None:
+                runner_cmd = res.course_cmd_rad
             sp = res.setpoint
             out = res.output
             cols["t_s"][i] = tk.t_s
@@ -312,41 +343,32 @@ def replay_flight(
                     cols["a_logged_m_s2"][i] = -logged.yaw_rate_ned_rad_s * speed_h
             if logged is None:
                 continue
-            reasons = []
-            if isinstance(logged, LoggedSetpoint) and isinstance(sp, VelocitySetpoint):
-                cols["yaw_rate_logged_rad_s"][i] = logged.yaw_rate_ned_rad_s
-                cols["vx_logged_m_s"][i] = logged.vx_ned_m_s
-                cols["vy_logged_m_s"][i] = logged.vy_ned_m_s
-                cols["vz_logged_m_s"][i] = logged.vz_ned_m_s
-                d_yaw = _absdiff(logged.yaw_rate_ned_rad_s, sp.yaw_rate_ned_rad_s)
-                d_vel = math.sqrt(_absdiff(logged.vx_ned_m_s, sp.vx_ned_m_s) ** 2
-                                  + _absdiff(logged.vy_ned_m_s, sp.vy_ned_m_s) ** 2
-                                  + _absdiff(logged.vz_ned_m_s, sp.vz_ned_m_s) ** 2)
-                cols["yaw_rate_diff_rad_s"][i] = d_yaw
-                cols["vel_diff_m_s"][i] = d_vel
-                if not d_yaw <= tolerance.yaw_rate_rad_s:
-                    reasons.append("yaw_rate")
-                if not d_vel <= tolerance.vel_m_s:
-                    reasons.append("velocity")
-            elif isinstance(logged, LoggedAttitude) and isinstance(sp, AttitudeSetpoint):
-                cols["roll_logged_rad"][i] = roll_from_quaternion(logged.q)
+            fields = _setpoint_fields(logged)
+            cols["yaw_rate_logged_rad_s"][i] = fields["yaw_rate_rad_s"]
+            cols["vx_logged_m_s"][i] = fields["vx_m_s"]
+            cols["vy_logged_m_s"][i] = fields["vy_m_s"]
+            cols["vz_logged_m_s"][i] = fields["vz_m_s"]
+            cols["roll_logged_rad"][i] = fields["roll_rad"]
+            if isinstance(sp, AttitudeSetpoint):
                 cols["roll_replayed_rad"][i] = sp.roll_ned_rad
-                d_att = rotation_between_rad(logged.q, sp.q)
-                cols["attitude_diff_rad"][i] = d_att
-                if not d_att <= tolerance.attitude_rad:
-                    reasons.append("attitude")
-            else:
-                reasons.append("setpoint_type")  # e.g. velocity logged, attitude replayed
+            diff, reasons = _compare_setpoints(logged, sp, tolerance)
+            for key, value in diff.items():
+                cols[key][i] = value
             compared[i] = True
             if companion_log and phase_logged[-1] != res.phase:
                 reasons.append("phase")
             if reasons and first_divergence is None:
                 first_divergence = _divergence(tk, i, cols, phase_logged[-1], res.phase, reasons,
                                                companion_log)
+        replay_coasts_before(n)
         bar.update_to(n)
 
     cols["compared"] = compared
     per_phase = _per_phase(cols, phase_logged if companion_log else phase_replayed)
+    if coast_diffs:
+        per_phase["coast"] = _per_phase(
+            {**{k: np.array([d[k] for d in coast_diffs]) for k in coast_diffs[0]},
+             "compared": np.ones(len(coast_diffs), dtype=bool)}, ["coast"] * len(coast_diffs))["coast"]
     switches = {"logged": _switches(cols["t_s"], phase_logged) if companion_log else [],
                 "replayed": _switches(cols["t_s"], phase_replayed)}
     tracking = _tracking(cols, phase_logged)
@@ -355,6 +377,43 @@ def replay_flight(
     return ReplayResult(flight, mission.name, tolerance, cols, first_divergence, per_phase, switches,
                         tracking, {"replay_s": time.perf_counter() - started}, mission.path,
                         rate_hz)
+
+
+def _compare_setpoints(logged, sp, tolerance: Tolerance) -> tuple[dict, list[str]]:
+    """Differences between a logged and a replayed setpoint, and the tolerances they break."""
+    reasons = []
+    diff = {"yaw_rate_diff_rad_s": math.nan, "vel_diff_m_s": math.nan, "attitude_diff_rad": math.nan}
+    if isinstance(logged, LoggedSetpoint) and isinstance(sp, VelocitySetpoint):
+        diff["yaw_rate_diff_rad_s"] = d_yaw = _absdiff(logged.yaw_rate_ned_rad_s, sp.yaw_rate_ned_rad_s)
+        diff["vel_diff_m_s"] = d_vel = math.sqrt(_absdiff(logged.vx_ned_m_s, sp.vx_ned_m_s) ** 2
+                                                 + _absdiff(logged.vy_ned_m_s, sp.vy_ned_m_s) ** 2
+                                                 + _absdiff(logged.vz_ned_m_s, sp.vz_ned_m_s) ** 2)
+        if not d_yaw <= tolerance.yaw_rate_rad_s:
+            reasons.append("yaw_rate")
+        if not d_vel <= tolerance.vel_m_s:
+            reasons.append("velocity")
+    elif isinstance(logged, LoggedAttitude) and isinstance(sp, AttitudeSetpoint):
+        diff["attitude_diff_rad"] = d_att = rotation_between_rad(logged.q, sp.q)
+        if not d_att <= tolerance.attitude_rad:
+            reasons.append("attitude")
+    else:
+        reasons.append("setpoint_type")  # e.g. velocity logged, attitude replayed
+    return diff, reasons
+
+
+def _setpoint_fields(sp) -> dict:
+    """The comparable fields of a logged or replayed setpoint (NaN where not applicable)."""
+    nan = math.nan
+    if isinstance(sp, LoggedSetpoint):
+        return {"vx_m_s": sp.vx_ned_m_s, "vy_m_s": sp.vy_ned_m_s, "vz_m_s": sp.vz_ned_m_s,
+                "yaw_rate_rad_s": sp.yaw_rate_ned_rad_s, "roll_rad": nan}
+    if isinstance(sp, VelocitySetpoint):
+        return {"vx_m_s": sp.vx_ned_m_s, "vy_m_s": sp.vy_ned_m_s, "vz_m_s": sp.vz_ned_m_s,
+                "yaw_rate_rad_s": sp.yaw_rate_ned_rad_s, "roll_rad": nan}
+    if isinstance(sp, LoggedAttitude):
+        return {"vx_m_s": nan, "vy_m_s": nan, "vz_m_s": nan, "yaw_rate_rad_s": nan,
+                "roll_rad": roll_from_quaternion(sp.q)}
+    return {"vx_m_s": nan, "vy_m_s": nan, "vz_m_s": nan, "yaw_rate_rad_s": nan, "roll_rad": sp.roll_ned_rad}
 
 
 def _unround_tick_time(guidance, tk: LoggedTick) -> float:

@@ -29,7 +29,7 @@ from companion.geometry import frames
 from companion.io.logread import PacketEncoder
 from companion.io.state import PositionSample
 from companion.io.tlog import TlogWriter
-from companion.loop.tick import TickConfig, compute_tick
+from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
 from companion.mission import Mission, parse_mission
 
 SAMPLE_AGE_S = 0.004  # how long before the tick the newest sample arrived
@@ -83,6 +83,7 @@ def write_synthetic_flight(
     output: str = "velocity",
     dropout_s: tuple[float, float] | None = None,
     stale_s: float = 0.3,
+    coast_ticks: int = 0,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -98,6 +99,10 @@ def write_synthetic_flight(
     dropout_s : ``(start, end)`` tick times between which the position stream stops (the loop
         keeps the last sample, ageing, and holds once it is older than ``stale_s``).
     stale_s : the loop's stale-position limit (the runner's ``--stale-s``).
+    coast_ticks : when > 0, every step that re-optimises k1, k2 is taken to last that many extra
+        ticks, as a slow step does in the runner's worker thread: its tick and the next
+        ``coast_ticks - 1`` send :func:`companion.loop.tick.coast_setpoint`, then its row is
+        recorded late and that tick is computed afresh.
 
     Returns
     -------
@@ -127,7 +132,18 @@ def write_synthetic_flight(
     n_ticks = int(round(duration_s * rate_hz))
     alpha = 1.0 - math.exp(-dt / vehicle_lag_s) if vehicle_lag_s > 0 else 1.0
 
+    guidance_ticks = 0
+    pending = None  # a result whose (simulated) slow step outlives its tick
+    pending_ticks = 0
+    last_result = None
+
     with TlogWriter(tlog_path, min_free_bytes=0) as tlog:
+
+        def write_row(result, at_unix_s: float) -> None:
+            time_usec = result.sample.time_boot_ms * 1000 if result.sample is not None else 0
+            tlog.write(companion.debug_float_array_packet("guidance", result.tick, time_usec, result.debug),
+                       at_unix_s)
+
         for k in range(n_ticks):
             t_grid = k * dt
             unix = START_UNIX_S + t_grid
@@ -149,17 +165,37 @@ def write_synthetic_flight(
                 yaw_seen = _float32(yaw_ned)[0]
             t_s = t_grid + TICK_JITTER_S * math.sin(0.7 * k)
             age = SAMPLE_AGE_S + (t_grid - sample_t)
-            res = compute_tick(guidance, k, t_s, sample, age, config,
-                               yaw_ned_rad=yaw_seen, prev_course_rad=prev_course,
-                               prev_course_cmd_rad=prev_course_cmd)
-            prev_course = res.course_rad
-            prev_course_cmd = res.course_cmd_rad
-            sp = res.setpoint
-            # as the runner: the tick's guidance row, then its setpoint
-            tlog.write(companion.debug_float_array_packet("guidance", k, sample.time_boot_ms * 1000, res.debug),
-                       unix)
+            sp = None
+            if pending is not None:  # a slow step is still "running"
+                pending_ticks -= 1
+                if pending_ticks > 0:
+                    sp = coast_setpoint(last_result, sample, age, config,
+                                        prev_course_cmd if prev_course_cmd is not None else math.nan)
+                    prev_course_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)
+                    sent_at = unix + 0.5 * dt  # after the step budget ran out
+                else:  # it finished: its row is recorded late, and this tick is computed afresh
+                    write_row(pending, unix + 10e-6)
+                    last_result, prev_course, pending = pending, pending.course_rad, None
+            if sp is None:
+                res = compute_tick(guidance, guidance_ticks, t_s, sample, age, config,
+                                   yaw_ned_rad=yaw_seen, prev_course_rad=prev_course,
+                                   prev_course_cmd_rad=prev_course_cmd)
+                guidance_ticks += 1
+                if coast_ticks and res.output is not None and res.output.reoptimised:
+                    # a re-optimisation outlives the step budget: this tick and the next coast
+                    pending, pending_ticks = res, coast_ticks
+                    sp = coast_setpoint(last_result, sample, age, config,
+                                        prev_course_cmd if prev_course_cmd is not None else math.nan)
+                    prev_course_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)
+                    sent_at = unix + 0.5 * dt
+                else:
+                    # as the runner: the tick's guidance row, then its setpoint
+                    write_row(res, unix + 20e-6)
+                    last_result, prev_course, prev_course_cmd = res, res.course_rad, res.course_cmd_rad
+                    sp = res.setpoint
+                    sent_at = unix + 40e-6
             if output == "attitude":
-                tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), unix + 20e-6)
+                tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), sent_at)
                 # coordinated turn at the commanded bank (NED roll: right wing down positive)
                 speed = math.hypot(ve, vn)
                 omega = G_M_S2 * math.tan(-sp.roll_ned_rad) / speed if speed > 0 else 0.0
@@ -168,7 +204,7 @@ def write_synthetic_flight(
             else:
                 tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
                                                               sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
-                                                              sp.yaw_rate_ned_rad_s), unix + 20e-6)
+                                                              sp.yaw_rate_ned_rad_s), sent_at)
                 # the vehicle follows the commanded horizontal velocity with a first-order lag
                 cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
                 ve += alpha * (cmd_ve - ve)

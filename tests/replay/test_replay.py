@@ -313,3 +313,51 @@ def test_position_dropout_holds_are_replayed_with_the_flights_stale_limit(tmp_pa
     default = replay_flight(read_flight(path), mission, config=tick_config_for(mission, 50.0))
     assert default.first_divergence is not None and default.first_divergence["reasons"][-1] == "phase"
     assert default.first_divergence["time_s"] == pytest.approx(4.28, abs=0.011)  # age first > 0.3 s
+
+
+@pytest.fixture(scope="module")
+def coasting_flight(tmp_path_factory) -> Path:
+    """Every re-optimising step outlives its tick by two ticks (as in the runner's worker thread):
+    those ticks send coast setpoints, the late row is recorded afterwards without a setpoint."""
+    path = tmp_path_factory.mktemp("coast") / "coast.tlog"
+    write_synthetic_flight(path, duration_s=20.0, coast_ticks=2)
+    return path
+
+
+def test_coasting_ticks_are_replayed_with_coast_setpoint(coasting_flight):
+    records, _ = read_tlog(coasting_flight)
+    rows = sum(r.msg_type == "DEBUG_FLOAT_ARRAY" for r in records)
+    setpoints = sum(r.msg_type == "SET_POSITION_TARGET_LOCAL_NED" for r in records)
+    # each episode: the slow step's tick and the next coast (2 setpoints without a row), then
+    # its row is recorded late and the third tick is stepped afresh: one step fewer per episode
+    episodes = 1000 - rows
+    assert setpoints == 1000 and episodes >= 3
+    j = replay_log(coasting_flight).to_json()
+    assert j["within_tolerance"] is True
+    assert j["ticks"] == rows
+    assert j["steps_compared"] == rows - episodes  # late rows are stepped, not compared
+    # the two coasts before the first row (the very first step re-optimises) are outside the loop
+    assert j["per_phase"]["coast"]["steps"] == 2 * episodes - 2
+    assert j["per_phase"]["coast"]["vel_max_m_s"] <= 0.05
+
+
+def test_altered_coast_setpoint_is_caught(coasting_flight, tmp_path):
+    tampered = copy_flight(coasting_flight, tmp_path / "coast.tlog")
+    data = bytearray(tampered.read_bytes())
+    frames = list(iter_frames(bytes(data)))
+    # a setpoint not preceded by a row within the same tick is a coast; take one after the start
+    coast_at = None
+    for (_, prev_us, prev), (off, us, pkt) in zip(frames, frames[1:]):
+        msg_id = pkt[7] | pkt[8] << 8 | pkt[9] << 16
+        prev_id = prev[7] | prev[8] << 8 | prev[9] << 16
+        if pkt[6] == 191 and msg_id == SPT_ID and prev_id != DFA_ID and us - 1_795_000_000_000_000 > 2_000_000:
+            coast_at = (off + 8, len(pkt), us)
+            break
+    assert coast_at is not None
+    edit_float(data, coast_at[0], coast_at[1], SPT_YAW_RATE_OFFSET, 0.05)
+    tampered.write_bytes(bytes(data))
+    result = replay_log(tampered)
+    fd = result.first_divergence
+    assert result.exit_code == 1
+    assert fd["coast"] is True and fd["reasons"] == ["yaw_rate"]
+    assert fd["time_s"] == pytest.approx((coast_at[2] - 1_795_000_000_000_000) / 1e6, abs=0.02)
