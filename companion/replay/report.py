@@ -80,11 +80,12 @@ def format_report(result) -> str:
     if fd is None:
         lines.append("first divergence: none")
     else:
-        lines.append(f"first divergence: tick {fd['tick']} at t = {fd['time_s']:.3f} s "
-                     f"({', '.join(fd['reasons'])}; yaw-rate diff {_f(fd['yaw_rate_diff_rad_s'], 5, 1).strip()} rad/s, "
-                     f"velocity diff {_f(fd['vel_diff_m_s'], 4, 1).strip()} m/s"
-                     + (f", attitude diff {fd['attitude_diff_rad']:.5f} rad" if fd["attitude_diff_rad"] is not None else "")
-                     + ")")
+        where = f"coasting setpoint after tick {fd['tick']}" if fd.get("coast") else f"tick {fd['tick']}"
+        att = fd["attitude_diff_rad"]
+        lines.append(f"first divergence: {where} at t = {fd['time_s']:.3f} s "
+                     f"({', '.join(fd['reasons'])}; yaw-rate diff {_f(fd['yaw_rate_diff_rad_s'], 5, 1).strip()} "
+                     f"rad/s, velocity diff {_f(fd['vel_diff_m_s'], 4, 1).strip()} m/s"
+                     + (f", attitude diff {att:.5f} rad" if att is not None else "") + ")")
         lines.append(f"  {'':<16} {'logged':>12} {'replayed':>12}")
         for key in ("vx_m_s", "vy_m_s", "vz_m_s", "yaw_rate_rad_s", "roll_rad", "a_cmd_m_s2", "phase", "k1", "k2"):
             if fd["logged"].get(key) is not None or fd["replayed"].get(key) is not None:
