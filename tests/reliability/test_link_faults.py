@@ -4,14 +4,17 @@ Faults come from :mod:`udp_proxy` between the two processes, or from extra proce
 sockets on the companion's port. Expected behaviour (docs/reliability.md):
 
 - loss, reordering and duplication: the flight goes on and converges onto the path;
-- a position blackout: HOLD (zero horizontal velocity) once the newest position is older than
-  ``--stale-s``, guidance again when positions return;
 - old positions replayed from the autopilot's own address are never used;
-- an autopilot restart (heartbeat gap, then the same system id from a new port): the companion
-  follows it to the new address and, seeing it no longer in OFFBOARD, stops commanding;
 - a second autopilot (another system id, heard first; ``--target-system 1``) and a stranger (the
   same system id, another address) on the companion's port: ignored and counted; nothing is ever
-  sent to them.
+  sent to them;
+- a position blackout: HOLD (zero horizontal velocity) once the newest position is older than
+  ``--stale-s``, guidance again when positions return;
+- an autopilot restart (heartbeat gap, then the same system id from a new port): the companion
+  follows it to the new address and, seeing it no longer in OFFBOARD, stops commanding.
+
+The first four are independent of one another and share one flight (``hostile_link``, run once
+for the module) so that the suite stays short; each has its own test of its own outcome.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import math
 import signal
 import socket
 import time
+from types import SimpleNamespace
 
 import pytest
 
@@ -37,27 +41,105 @@ def _rejected(summary: dict) -> dict:
     return summary["link"]["rejected"]
 
 
-def test_twenty_percent_loss_with_reordering_and_duplication_still_converges_onto_the_path(tmp_path):
+class Stranger:
+    """A socket on another port that claims to be the paired autopilot (same system id)."""
+
+    def __init__(self, port: int):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.setblocking(False)
+        self.dest = ("127.0.0.1", port)
+        self.enc = Encoder(1, 1)
+        self.sent = 0
+
+    def send_burst(self, t_ms: int) -> None:
+        # Heartbeat in the hold mode, a position 50 m north of the path.
+        for d in (self.enc.heartbeat(custom_mode=(4 << 16) | (3 << 24)),
+                  self.enc.local_position(t_ms, x=50.0, y=0.0, vx=0.0, vy=5.0)):
+            self.sock.sendto(d, self.dest)
+            self.sent += 1
+
+    def received(self) -> int:
+        n = 0
+        while True:
+            try:
+                self.sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                return n
+            n += 1
+
+
+@pytest.fixture(scope="module")
+def hostile_link(tmp_path_factory):
+    """One 7 s flight through every independent fault at once.
+
+    - a second autopilot (system 2, 500 m away) on the companion's port, started first; the
+      companion is told ``--target-system 1``;
+    - the paired autopilot (4 m north of the path, heading east) behind the proxy, which drops
+      20 %, duplicates 10 % and reorders 10 % of the datagrams in both directions once the
+      companion flies;
+    - a stranger sending heartbeats and positions as system 1 from another port, at 50 Hz;
+    - from 2 s to 3.5 s, positions captured 1-2 s earlier replayed from the proxy's socket (the
+      address the companion pinned).
+    """
+    tmp = tmp_path_factory.mktemp("hostile_link")
     port = free_udp_port()
-    mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "7")
+    mission = write_mission(tmp)
+    comp = Companion(mission, port, tmp / "c.tlog", "--max-duration-s", "7", "--target-system", "1")
+    other = Mock(f"udpout:127.0.0.1:{port}", "--start-ned", "500,500", sysid=2, tlog=tmp / "other.tlog")
+    time.sleep(1.5)
+    stranger = Stranger(port)
+    captured = []
+    replayed = 0
+    mock = None
     with FaultProxy(port, seed=7) as proxy:
-        # 4 m north of the path (left of it in ENU), heading east along it.
-        mock = Mock(f"udpout:127.0.0.1:{proxy.port}", "--start-ned", "4,0")
+        def capture(datagram: bytes) -> bool:
+            if msgid_of(datagram) == MSG_LOCAL_POSITION_NED:
+                captured.append(datagram)
+            return False
+        proxy.up.faults.drop_if = capture
         try:
+            mock = Mock(f"udpout:127.0.0.1:{proxy.port}", "--start-ned", "4,0")
             comp.wait_flying()
             for d in (proxy.up, proxy.down):
                 d.faults.loss, d.faults.duplicate, d.faults.reorder = 0.2, 0.1, 0.1
+            t0 = time.monotonic()
+            t_ms = 10_000_000
+            old = []
+            while comp.p.poll() is None and time.monotonic() - t0 < 30:
+                stranger.send_burst(t_ms)
+                t_ms += 20
+                dt = time.monotonic() - t0
+                if 2.0 <= dt < 3.5:
+                    if not old:
+                        old = list(captured[-80:-40])  # about 1-2 s old by now (~40 Hz arrive)
+                    for d in old[::4]:
+                        proxy.inject_to_companion(d)
+                        replayed += 1
+                time.sleep(0.02)
             rc, summary = comp.result()
         finally:
-            mock_summary = mock.stop()
-    assert rc == 0, comp.stderr
-    assert summary["exit"] == "max duration"
-    up, down = proxy.up.counts, proxy.down.counts
+            other_summary = other.stop()
+            mock_summary = mock.stop() if mock is not None else {}
+    return SimpleNamespace(rc=rc, summary=summary, stderr=comp.stderr, msgs=read_tlog(tmp / "c.tlog"),
+                           proxy_up=proxy.up.counts, proxy_down=proxy.down.counts, mock=mock_summary,
+                           other=other_summary, stranger_sent=stranger.sent,
+                           stranger_received=stranger.received(), replayed=replayed)
+
+
+def test_hostile_link_flight_completes(hostile_link):
+    assert hostile_link.rc == 0, hostile_link.stderr
+    assert hostile_link.summary["exit"] == "max duration"
+
+
+def test_twenty_percent_loss_with_reordering_and_duplication_still_converges_onto_the_path(hostile_link):
+    f = hostile_link
+    summary = f.summary
+    up, down = f.proxy_up, f.proxy_down
     # The dice really were thrown in both directions (about 20 % of each).
     assert 0.1 < up["dropped_loss"] / up["seen"] < 0.3 and 0.1 < down["dropped_loss"] / down["seen"] < 0.3
     assert up["duplicated"] > 0 and up["reordered"] > 0 and down["duplicated"] > 0
-    g = guidance_records(read_tlog(tmp_path / "c.tlog"))
+    g = guidance_records(f.msgs)
     xt = [r.data[F_XTRACK] for r in g]
     # Constant-L1 on a straight line is a damped second-order loop (damping 1/sqrt(2) in Park's
     # linearisation, overshoot ~4 %): from 4 m the error never grows past it, and it is gone
@@ -69,9 +151,55 @@ def test_twenty_percent_loss_with_reordering_and_duplication_still_converges_ont
     assert summary["hold_ticks"] == 0
     # The mock kept receiving setpoints (about 80 % of them get through, plus the duplicates) and
     # stayed in OFFBOARD: otherwise the companion would have stopped on "pilot override".
-    assert mock_summary["rx_frames_ok"] >= 0.6 * summary["setpoints_sent"]
+    assert f.mock["rx_frames_ok"] >= 0.6 * summary["setpoints_sent"]
     record("loss_reorder_duplicate", proxy_up=dict(up), proxy_down=dict(down),
            d_max_m=summary["d_max_m"], tail_xtrack_max_m=max(tail), hold_ticks=summary["hold_ticks"])
+
+
+def test_replayed_old_positions_from_the_autopilot_address_are_never_used(hostile_link):
+    """A position sample older than the one held (a reordered or replayed datagram) must not
+    replace it: the guidance would run on data seconds old while it looks fresh."""
+    f = hostile_link
+    assert f.replayed > 100
+    # Walk the tlog in order: each tick's sample (its time_boot_ms is the record's time_usec)
+    # must be the newest position received so far, give or take one stream period.
+    newest_ms = -1
+    stale_ticks = 0
+    for m in f.msgs:
+        if m.get_type() == "LOCAL_POSITION_NED":
+            newest_ms = max(newest_ms, m.time_boot_ms)
+        elif m in guidance_records([m]) and m.data[F_PHASE] != PHASE_HOLD:
+            stale_ticks += m.time_usec // 1000 < newest_ms - 50
+    assert stale_ticks == 0, f"{stale_ticks} ticks used a position older than one already received"
+    assert _rejected(f.summary)["old_sample"] >= 0.9 * f.replayed
+
+
+def test_second_autopilot_heard_first_is_never_paired_with_nor_answered(hostile_link):
+    f = hostile_link
+    assert "paired with px4 copter (system 1, component 1)" in f.stderr
+    assert _rejected(f.summary)["wrong_system"] > 0  # the second autopilot's messages
+    assert f.other["rx_datagrams"] == 0  # nothing was ever sent to it
+    msgs = f.msgs
+    incoming = [m for m in msgs if (m.get_srcSystem(), m.get_srcComponent()) != (1, 191)]
+    assert incoming and all((m.get_srcSystem(), m.get_srcComponent()) == (1, 1) for m in incoming)
+    targets = {(m.target_system, m.target_component) for m in msgs
+               if m.get_type() in ("SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG")}
+    assert targets == {(1, 1)}
+    record("second_autopilot", rejected_wrong_system=_rejected(f.summary)["wrong_system"],
+           other_autopilot_rx_datagrams=f.other["rx_datagrams"])
+
+
+def test_stranger_on_the_companion_port_is_ignored_and_never_answered(hostile_link):
+    f = hostile_link
+    assert f.stranger_sent > 200
+    assert _rejected(f.summary)["wrong_address"] >= 0.9 * f.stranger_sent  # a few may be lost by UDP
+    assert f.stranger_received == 0
+    # The guidance only ever saw the paired autopilot's positions (near the path, not 50 m
+    # north like the stranger's or 500 m away like the other autopilot's).
+    g = guidance_records(f.msgs)
+    assert g and all(abs(r.data[F_Y]) < 4.5 for r in g if r.data[F_PHASE] != PHASE_HOLD)
+    record("stranger", stranger_sent=f.stranger_sent, rejected_wrong_address=_rejected(f.summary)["wrong_address"],
+           stranger_received=f.stranger_received)
 
 
 @pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
@@ -117,45 +245,6 @@ def test_one_second_position_blackout_holds_then_resumes(tmp_path, autopilot):
            positions_back_to_guidance_s=resumed[0]._timestamp - first_after, hold_ticks=len(holds))
 
 
-def test_replayed_old_positions_from_the_autopilot_address_are_never_used(tmp_path):
-    """A position sample older than the one held (a reordered or replayed datagram) must not
-    replace it: the guidance would run on data seconds old while it looks fresh."""
-    port = free_udp_port()
-    mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "5")
-    captured = []
-    with FaultProxy(port) as proxy:
-        def capture(datagram: bytes) -> bool:
-            if msgid_of(datagram) == MSG_LOCAL_POSITION_NED:
-                captured.append(datagram)
-            return False
-        proxy.up.faults.drop_if = capture
-        mock = Mock(f"udpout:127.0.0.1:{proxy.port}")
-        try:
-            comp.wait_flying()
-            time.sleep(2.0)
-            old = list(captured[-100:-50])  # about 1-2 s old by now
-            end = time.monotonic() + 1.5
-            while time.monotonic() < end:
-                for d in old:
-                    proxy.inject_to_companion(d)
-                time.sleep(0.01)
-            rc, summary = comp.result()
-        finally:
-            mock.stop()
-    assert rc == 0, comp.stderr
-    # Walk the tlog in order: each tick's sample (its time_boot_ms is the record's time_usec)
-    # must be the newest position received so far, give or take one stream period.
-    newest_ms = -1
-    stale_ticks = 0
-    for m in read_tlog(tmp_path / "c.tlog"):
-        if m.get_type() == "LOCAL_POSITION_NED":
-            newest_ms = max(newest_ms, m.time_boot_ms)
-        elif m in guidance_records([m]) and m.data[F_PHASE] != PHASE_HOLD:
-            stale_ticks += m.time_usec // 1000 < newest_ms - 50
-    assert stale_ticks == 0, f"{stale_ticks} ticks used a position older than one already received"
-    assert summary["link"]["rejected"].get("old_sample", 0) > 0
-
 
 def test_autopilot_restart_is_followed_to_its_new_port_and_the_companion_stops_commanding(tmp_path):
     port = free_udp_port()
@@ -191,72 +280,3 @@ def test_autopilot_restart_is_followed_to_its_new_port_and_the_companion_stops_c
     assert _rejected(summary)["wrong_address"] == 0
 
 
-class Stranger:
-    """A socket on another port that claims to be the paired autopilot (same system id)."""
-
-    def __init__(self, port: int):
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.setblocking(False)
-        self.dest = ("127.0.0.1", port)
-        self.enc = Encoder(1, 1)
-        self.sent = 0
-
-    def send_burst(self, t_ms: int) -> None:
-        # Heartbeat in the hold mode, a position 50 m north of the path.
-        for d in (self.enc.heartbeat(custom_mode=(4 << 16) | (3 << 24)),
-                  self.enc.local_position(t_ms, x=50.0, y=0.0, vx=0.0, vy=5.0)):
-            self.sock.sendto(d, self.dest)
-            self.sent += 1
-
-    def received(self) -> int:
-        n = 0
-        while True:
-            try:
-                self.sock.recvfrom(65535)
-            except (BlockingIOError, InterruptedError):
-                return n
-            n += 1
-
-
-def test_second_autopilot_and_stranger_on_the_companion_port_are_ignored_and_never_answered(tmp_path):
-    port = free_udp_port()
-    mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "5", "--target-system", "1")
-    # A second autopilot, system 2, 500 m away, on the same port, heard first.
-    other = Mock(f"udpout:127.0.0.1:{port}", "--start-ned", "500,500", sysid=2, tlog=tmp_path / "other.tlog")
-    time.sleep(1.5)
-    mock = None
-    stranger = Stranger(port)
-    try:
-        mock = Mock(f"udpout:127.0.0.1:{port}")
-        comp.wait_flying()
-        end = time.monotonic() + 3.0
-        t_ms = 10_000_000
-        while time.monotonic() < end and comp.p.poll() is None:
-            stranger.send_burst(t_ms)
-            t_ms += 20
-            time.sleep(0.02)
-        rc, summary = comp.result()
-    finally:
-        other_summary = other.stop()
-        if mock is not None:
-            mock.stop()
-    assert rc == 0, comp.stderr
-    rej = _rejected(summary)
-    assert rej["wrong_system"] > 0  # the second autopilot's messages
-    assert rej["wrong_address"] >= stranger.sent * 0.9  # the stranger's (a few may be lost by UDP)
-    # Nothing was ever sent to either of them.
-    assert stranger.received() == 0
-    assert other_summary["rx_datagrams"] == 0
-    msgs = read_tlog(tmp_path / "c.tlog")
-    incoming = [m for m in msgs if (m.get_srcSystem(), m.get_srcComponent()) != (1, 191)]
-    assert incoming and all((m.get_srcSystem(), m.get_srcComponent()) == (1, 1) for m in incoming)
-    targets = {(m.target_system, m.target_component) for m in msgs if m.get_type() == "SET_POSITION_TARGET_LOCAL_NED"}
-    assert targets == {(1, 1)}
-    # The guidance only ever saw the paired autopilot's positions (near the path, not 50 m
-    # north like the stranger's or 500 m away like the other autopilot's).
-    g = guidance_records(msgs)
-    assert all(abs(r.data[F_Y]) < 2.0 for r in g if r.data[F_PHASE] != PHASE_HOLD)
-    record("second_autopilot_and_stranger", stranger_sent=stranger.sent, rejected=rej,
-           stranger_received=0, other_autopilot_rx_datagrams=other_summary["rx_datagrams"])
