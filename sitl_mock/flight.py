@@ -70,6 +70,7 @@ TAKEOFF_DONE_M = 0.1
 RTL_ALT_PX4_M = 30.0
 RTL_ALT_ARDUPILOT_M = 15.0
 HOLD_SPEED_MAX_M_S = 5.0
+LOOK_AHEAD_MIN_SPEED_M_S = 1.0  # below this ArduCopter's look-ahead yaw keeps the heading
 VERTICAL_SPEED_UP_MAX_M_S = 3.0  # PX4 MPC_Z_VEL_MAX_UP
 VERTICAL_SPEED_DOWN_MAX_M_S = 1.5  # PX4 MPC_Z_VEL_MAX_DN
 
@@ -617,11 +618,22 @@ class FlightLogic:
             yaw_rate = self._yaw_rate_to(sp.yaw_rad) + (sp.yaw_rate_rad_s or 0.0)
         elif sp.yaw_rate_rad_s is not None:
             yaw_rate = sp.yaw_rate_rad_s
+        elif self._look_ahead_yaw() and math.hypot(vel[0], vel[1]) > LOOK_AHEAD_MIN_SPEED_M_S:
+            # ArduCopter with WP_YAW_BEHAVIOR 1 or 2 (default): no yaw in the target, so the nose
+            # turns toward the direction of travel.
+            self._yaw_hold_rad = math.atan2(vel[1], vel[0])
+            yaw_rate = self._yaw_rate_to(self._yaw_hold_rad)
         else:
             yaw_rate = self._yaw_rate_to(self._yaw_hold_rad)
         if sp.yaw_rad is not None or sp.yaw_rate_rad_s is not None:
             self._yaw_hold_rad = s.yaw_rad
         return vel, tuple(acc_ff), yaw_rate
+
+    def _look_ahead_yaw(self) -> bool:
+        """ArduCopter's WP_YAW_BEHAVIOR: 1 (face next waypoint) or 2 (same except RTL) turn the nose."""
+        if self.pers.is_px4 or self.pers.vehicle != "copter":
+            return False
+        return int(self._param("WP_YAW_BEHAVIOR", 0)) in (1, 2)
 
     def _rtl_multirotor(self) -> list[float]:
         s = self.model.state

@@ -263,6 +263,7 @@ class Personality:
                 "LAND_SPEED": Param(50.0, f),
                 "RTL_ALT": Param(1500.0, f),
                 "ATC_RATE_Y_MAX": Param(yaw_rate_max_deg_s, f),
+                "WP_YAW_BEHAVIOR": Param(2, i8),  # 2: face the direction of travel, except in RTL
             })
         elif self.vehicle == "plane":
             params.update({

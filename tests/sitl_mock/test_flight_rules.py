@@ -274,3 +274,23 @@ def test_plane_takes_off_from_the_ground_then_loiters_at_the_target_altitude(aut
     assert f.mode == f.pers.hold_mode
     assert -f.model.state.pos_ned_m[2] == pytest.approx(30.0, abs=1.0)
     assert f.model.state.airspeed_m_s >= 10.0
+
+
+VEL_NO_YAW = VEL_ONLY | fl.MASK_YAW_RATE  # velocity only, neither yaw nor yaw rate
+
+
+@pytest.mark.parametrize("autopilot, behaviour, expected_yaw_deg", [
+    ("ardupilot", 2, 90.0),  # ArduCopter default: the nose follows the direction of travel
+    ("ardupilot", 0, 0.0),  # WP_YAW_BEHAVIOR 0: heading kept
+    ("px4", None, 0.0),  # PX4 keeps the heading when the setpoint has no yaw
+])
+def test_heading_when_the_velocity_target_carries_no_yaw(autopilot, behaviour, expected_yaw_deg):
+    f = make(autopilot)
+    if behaviour is not None:
+        f.params["WP_YAW_BEHAVIOR"] = type(f.params["WP_YAW_BEHAVIOR"])(behaviour, f.params["WP_YAW_BEHAVIOR"].param_type)
+    east = (fl.MAV_FRAME_LOCAL_NED, VEL_NO_YAW, (0.0, 0.0, 0.0), (0.0, 3.0, 0.0), (0.0, 0.0, 0.0), 0.0, 0.0)
+    advance(f, 0.3, east)
+    assert f.set_mode(f.pers.guided_mode) == fl.MAV_RESULT_ACCEPTED
+    advance(f, 8.0, east)
+    assert math.degrees(f.model.state.yaw_rad) == pytest.approx(expected_yaw_deg, abs=0.5)
+    assert f.model.state.vel_ned_m_s[1] == pytest.approx(3.0, abs=0.01)

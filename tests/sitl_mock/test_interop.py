@@ -20,6 +20,8 @@ import pytest
 from pymavlink import mavutil
 from sitl_mock_helpers import ROOT, MockProcess, free_udp_port
 
+from sitl_mock.personality import Personality
+
 M = mavutil.mavlink
 pytestmark = pytest.mark.interop
 
@@ -165,7 +167,8 @@ def test_mavproxy_downloads_parameters_shows_and_switches_modes_arms_and_logs(tm
         mock.stop()
     out = "".join(lines)
     # Parameters downloaded: the count and values are the mock's.
-    assert "Received 11 parameters" in out
+    served = Personality("ardupilot", "copter").default_params(1, 0.5, 3.0, 5.0, 90.0, 12.0, (15.0, 10.0, 25.0), 45.0)
+    assert f"Received {len(served)} parameters" in out
     saved = (tmp_path / "mav.parm").read_text()
     assert "GUID_TIMEOUT" in saved and "SYSID_THISMAV" in saved
     # Modes shown as ArduCopter names, in the order commanded; armed; every command accepted.
