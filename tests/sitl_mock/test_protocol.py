@@ -272,3 +272,19 @@ def test_udpout_answers_a_second_client_where_its_datagrams_come_from(mock_facto
         assert other.recv_match(type="LOCAL_POSITION_NED", blocking=True, timeout=5) is not None
     finally:
         other.close()
+
+
+def test_a_mavlink_1_command_is_accepted_and_answered_in_mavlink_2(mock_factory):
+    from pymavlink.dialects.v10 import ardupilotmega as v1
+
+    _, client = mock_factory("--speedup", "5")
+    client.wait("HEARTBEAT")
+    (address,) = client.conn.clients
+    packer = v1.MAVLink(None, srcSystem=255, srcComponent=190)
+    frame = bytes(packer.command_long_encode(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+                  .pack(packer))
+    assert frame[0] == 0xFE
+    client.drain()
+    client.conn.port.sendto(frame, address)
+    ack = client.wait("COMMAND_ACK", predicate=lambda m: m.command == M.MAV_CMD_COMPONENT_ARM_DISARM)
+    assert ack.result == M.MAV_RESULT_ACCEPTED and ack.get_msgbuf()[0] == 0xFD
