@@ -214,6 +214,18 @@ def test_bad_options_exit_2_with_one_line(argv, expected, capsys):
     assert len(err) == 1 and err[0].startswith("sitl-mock: error: ") and expected in err[0]
 
 
+def test_a_busy_udpin_port_is_reported_before_the_ready_line(capsys):
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as busy:
+        busy.bind(("127.0.0.1", 0))
+        port = busy.getsockname()[1]
+        assert main(["--link", "udpout:127.0.0.1:14540", "--link", f"udpin:127.0.0.1:{port}"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.startswith(f"sitl-mock: error: --link udpin:127.0.0.1:{port}: cannot open it")
+
+
 def test_duration_runs_in_simulated_time_and_speedup_shortens_the_wall_time(capsys):
     start = time.monotonic()
     assert main(["--link", "udpin:127.0.0.1:0", "--speedup", "20", "--duration-s", "10", "--quiet"]) == 0
