@@ -14,6 +14,9 @@ from __future__ import annotations
 
 import hashlib
 import time
+from types import SimpleNamespace
+
+import pytest
 
 from figures import record
 from harness import PHASE_HOLD, Companion, Mock, free_udp_port, guidance_records, read_tlog, write_mission
@@ -83,38 +86,49 @@ def test_same_key_flies_and_forged_messages_both_ways_are_rejected_and_counted(t
            mock_unsigned=mock_summary["unsigned"], mock_bad_signature=mock_summary["bad_signature"])
 
 
-def test_companion_without_the_key_is_ignored_by_a_signing_autopilot_and_does_not_fly(tmp_path):
-    (tmp_path / "mock.key").write_text(KEY.hex())
-    port = free_udp_port()
-    mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog")
-    mock = Mock(f"udpout:127.0.0.1:{port}", "--signing-key-file", str(tmp_path / "mock.key"),
-                tlog=tmp_path / "m.tlog")
+@pytest.fixture(scope="module")
+def mismatched_keys(tmp_path_factory):
+    """Two refusals run side by side (each waits seconds for answers that never come): a
+    companion without a key, and one with a different key, each against a signing mock."""
+    tmp = tmp_path_factory.mktemp("mismatched_keys")
+    (tmp / "mock.key").write_text(KEY.hex())
+    (tmp / "other.key").write_text(OTHER_KEY.hex())
+    mission = write_mission(tmp)
+    port_a, port_b = free_udp_port(), free_udp_port()
+    comp_a = Companion(mission, port_a, tmp / "a.tlog")
+    comp_b = Companion(mission, port_b, tmp / "b.tlog", "--signing-key-file", str(tmp / "other.key"),
+                       "--heartbeat-timeout-s", "3")
+    mock_a = mock_b = None
     try:
-        rc, summary = comp.result(60)
+        mock_a = Mock(f"udpout:127.0.0.1:{port_a}", "--signing-key-file", str(tmp / "mock.key"),
+                      tlog=tmp / "ma.tlog")
+        mock_b = Mock(f"udpout:127.0.0.1:{port_b}", "--signing-key-file", str(tmp / "mock.key"))
+        rc_a, summary_a = comp_a.result(60)
+        rc_b, summary_b = comp_b.result(60)
     finally:
-        mock_summary = mock.stop()
-    assert rc in (1, 2), comp.stderr  # refused to start: no ACK for its requests
-    assert summary["setpoints_sent"] == 0 or summary["ticks"] == 0
-    assert summary["ticks"] == 0
-    assert mock_summary["unsigned"] > 0 and mock_summary["rx_frames_ok"] == 0
+        comp_a.kill()
+        comp_b.kill()
+        mock_a_summary = mock_a.stop() if mock_a is not None else {}
+        if mock_b is not None:
+            mock_b.stop()
+    return SimpleNamespace(
+        no_key=SimpleNamespace(rc=rc_a, summary=summary_a, stderr=comp_a.stderr, mock=mock_a_summary,
+                               mock_tlog=tmp / "ma.tlog"),
+        other_key=SimpleNamespace(rc=rc_b, summary=summary_b, stderr=comp_b.stderr))
+
+
+def test_companion_without_the_key_is_ignored_by_a_signing_autopilot_and_does_not_fly(mismatched_keys):
+    f = mismatched_keys.no_key
+    assert f.rc in (1, 2), f.stderr  # refused to start: no ACK for its requests
+    assert f.summary["ticks"] == 0
+    assert f.mock["unsigned"] > 0 and f.mock["rx_frames_ok"] == 0
     # The autopilot never acted on anything from the companion.
-    assert not [m for m in read_tlog(tmp_path / "m.tlog") if m.get_srcComponent() == 191]
+    assert not [m for m in read_tlog(f.mock_tlog) if m.get_srcComponent() == 191]
 
 
-def test_different_keys_never_pair(tmp_path):
-    (tmp_path / "companion.key").write_text(OTHER_KEY.hex())
-    (tmp_path / "mock.key").write_text(KEY.hex())
-    port = free_udp_port()
-    mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog", "--signing-key-file", str(tmp_path / "companion.key"),
-                     "--heartbeat-timeout-s", "3")
-    mock = Mock(f"udpout:127.0.0.1:{port}", "--signing-key-file", str(tmp_path / "mock.key"))
-    try:
-        rc, summary = comp.result(60)
-    finally:
-        mock.stop()
-    assert rc == 2, comp.stderr
-    assert "no HEARTBEAT" in comp.stderr
-    assert summary["link"]["rejected"]["bad_signature"] > 0
-    assert summary["link"]["received"] == 0
+def test_different_keys_never_pair(mismatched_keys):
+    f = mismatched_keys.other_key
+    assert f.rc == 2, f.stderr
+    assert "no HEARTBEAT" in f.stderr
+    assert f.summary["link"]["rejected"]["bad_signature"] > 0
+    assert f.summary["link"]["received"] == 0
