@@ -300,3 +300,25 @@ def test_a_mavlink_1_command_is_accepted_and_answered_in_mavlink_2(mock_factory)
     client.conn.port.sendto(frame, address)
     ack = client.wait("COMMAND_ACK", predicate=lambda m: m.command == M.MAV_CMD_COMPONENT_ARM_DISARM)
     assert ack.result == M.MAV_RESULT_ACCEPTED and ack.get_msgbuf()[0] == 0xFD
+
+
+def _recorded_positions(tmp_path, seed: int, name: str) -> list[tuple[float, float, float]]:
+    tlog = tmp_path / name
+    argv = ["--link", f"udpout:127.0.0.1:{free_udp_port()}", "--speedup", "20", "--duration-s", "5", "--quiet",
+            "--start-airborne", "--start-alt-m", "10", "--pos-noise-m", "0.5", "--seed", str(seed),
+            "--tlog", str(tlog)]
+    proc = subprocess.run([sys.executable, "-m", "sitl_mock", *argv], cwd=ROOT, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    log = mavutil.mavlink_connection(str(tlog), dialect="ardupilotmega")
+    out = []
+    while (msg := log.recv_match(type="LOCAL_POSITION_NED")) is not None:
+        out.append((msg.time_boot_ms, msg.x, msg.y, msg.z))
+    return out
+
+
+def test_same_seed_same_reported_track_across_runs(tmp_path):
+    first = _recorded_positions(tmp_path, 3, "a.tlog")
+    assert len(first) == 151  # due at 0, 1/30, ..., 150/30 = 5 s: PX4 default 30 Hz
+    assert first == _recorded_positions(tmp_path, 3, "b.tlog")
+    assert first != _recorded_positions(tmp_path, 4, "c.tlog")
