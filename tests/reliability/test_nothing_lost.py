@@ -69,26 +69,41 @@ def check_log_complete(tlog, mock_tlog=None) -> dict:
     return out
 
 
-@pytest.mark.parametrize("sig, expected_rc", [(signal.SIGINT, 130), (signal.SIGTERM, 1)],
-                         ids=["SIGINT", "SIGTERM"])
-def test_signal_mid_flight_leaves_a_complete_readable_tlog(tmp_path, sig, expected_rc):
-    port = free_udp_port()
-    mission = write_mission(tmp_path)
-    comp = Companion(mission, port, tmp_path / "c.tlog")
-    mock = Mock(f"udpout:127.0.0.1:{port}", tlog=tmp_path / "m.tlog")
+@pytest.fixture(scope="module")
+def signalled_flights(tmp_path_factory):
+    """Two flights side by side, one stopped with SIGINT (Ctrl-C), one with SIGTERM, 1.5 s into
+    the guidance loop. Returns {signal name: (rc, stderr, directory, mission file)}."""
+    out = {}
+    runs = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        tmp = tmp_path_factory.mktemp(sig.name)
+        port = free_udp_port()
+        mission = write_mission(tmp)
+        comp = Companion(mission, port, tmp / "c.tlog")
+        runs.append((sig, tmp, mission, comp, Mock(f"udpout:127.0.0.1:{port}", tlog=tmp / "m.tlog")))
     try:
-        comp.wait_flying()
+        for _, _, _, comp, _ in runs:
+            comp.wait_flying()
         time.sleep(1.5)
-        comp.signal(sig)
-        rc = comp.wait(30)
-        time.sleep(0.3)  # let the mock record anything still in flight
+        for sig, _, _, comp, _ in runs:
+            comp.signal(sig)
+        for sig, tmp, mission, comp, _ in runs:
+            out[sig.name] = (comp.wait(30), comp.stderr, tmp, mission)
+        time.sleep(0.3)  # let the mocks record anything still in flight
     finally:
-        comp.kill()
-        mock.stop()
-    assert rc == expected_rc, comp.stderr
-    assert "Traceback" not in comp.stderr
-    check_log_complete(tmp_path / "c.tlog", tmp_path / "m.tlog")
-    assert (tmp_path / "c.tlog.mission.yaml").read_text() == mission.read_text()
+        for _, _, _, comp, mock in runs:
+            comp.kill()
+            mock.stop()
+    return out
+
+
+@pytest.mark.parametrize("sig, expected_rc", [("SIGINT", 130), ("SIGTERM", 1)], ids=["SIGINT", "SIGTERM"])
+def test_signal_mid_flight_leaves_a_complete_readable_tlog(signalled_flights, sig, expected_rc):
+    rc, stderr, tmp, mission = signalled_flights[sig]
+    assert rc == expected_rc, stderr
+    assert "Traceback" not in stderr
+    check_log_complete(tmp / "c.tlog", tmp / "m.tlog")
+    assert (tmp / "c.tlog.mission.yaml").read_text() == mission.read_text()
 
 
 def test_link_timeout_leaves_a_complete_readable_tlog_and_stops_sending(tmp_path):
