@@ -37,6 +37,8 @@ Examples
 from __future__ import annotations
 
 import math
+import mmap
+import os
 import re
 import struct
 from dataclasses import dataclass
@@ -186,6 +188,14 @@ def _light_decoder(msg_id: int) -> _LightDecoder:
     return dec
 
 
+def _map_file(path: Path):
+    """The file's bytes, memory-mapped (a long log is not copied into memory); ``b""`` when empty."""
+    with open(path, "rb") as f:
+        if os.fstat(f.fileno()).st_size == 0:
+            return b""
+        return mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+
+
 class _Reject(Exception):
     """Internal: the record at a position is not acceptable (message says why)."""
 
@@ -222,9 +232,10 @@ class TlogReader:
         self.path = Path(path)
         self.light = bool(light)
         try:
-            self._data = self.path.read_bytes()
-        except OSError as err:
-            raise LogError(f"{self.path}: cannot read the log ({err.strerror or err})") from err
+            self._data = _map_file(self.path)
+        except (OSError, ValueError) as err:
+            reason = err.strerror if isinstance(err, OSError) and err.strerror else err
+            raise LogError(f"{self.path}: cannot read the log ({reason})") from err
         self.size_bytes = len(self._data)
         self.decode_ids = None if decode_ids is None else frozenset(decode_ids)
         self.on_warning = on_warning
