@@ -61,7 +61,11 @@ def test_ardupilot_streams_nothing_until_asked_then_position_at_200_hz_of_simula
         assert msg is not None
         stamps.append(msg.time_boot_ms)
     assert statistics.median(b - a for a, b in zip(stamps, stamps[1:])) == 5
+    assert client.command(M.MAV_CMD_GET_MESSAGE_INTERVAL, 32) == M.MAV_RESULT_ACCEPTED
+    assert client.wait("MESSAGE_INTERVAL").interval_us == 5000
     assert client.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 32, -1) == M.MAV_RESULT_ACCEPTED
+    client.command(M.MAV_CMD_GET_MESSAGE_INTERVAL, 32)
+    assert client.wait("MESSAGE_INTERVAL").interval_us == -1  # off
 
 
 def test_request_data_stream_starts_the_ardupilot_position_group(mock_factory):
