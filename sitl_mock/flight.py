@@ -639,7 +639,10 @@ class FlightLogic:
         s = self.model.state
         p = self.model.params
         home = self.home_ned_m
-        rtl_alt = RTL_ALT_PX4_M if self.pers.is_px4 else RTL_ALT_ARDUPILOT_M
+        if self.pers.is_px4:
+            rtl_alt = self._param("RTL_RETURN_ALT", RTL_ALT_PX4_M)
+        else:
+            rtl_alt = self._param("RTL_ALT", RTL_ALT_ARDUPILOT_M * 100.0) / 100.0  # centimetres
         if self.pers.vehicle == "rover":
             self._rtl_phase = 1
             if math.hypot(home[0] - s.pos_ned_m[0], home[1] - s.pos_ned_m[1]) < 0.5:

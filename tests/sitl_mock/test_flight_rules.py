@@ -294,3 +294,16 @@ def test_heading_when_the_velocity_target_carries_no_yaw(autopilot, behaviour, e
     advance(f, 8.0, east)
     assert math.degrees(f.model.state.yaw_rad) == pytest.approx(expected_yaw_deg, abs=0.5)
     assert f.model.state.vel_ned_m_s[1] == pytest.approx(3.0, abs=0.01)
+
+
+def test_arducopter_rtl_climbs_to_rtl_alt_in_centimetres_before_going_home():
+    f = make("ardupilot")
+    f.params["RTL_ALT"] = type(f.params["RTL_ALT"])(2500.0, f.params["RTL_ALT"].param_type)  # 25 m
+    f.model.state.pos_ned_m[:2] = [30.0, 0.0]
+    assert f.return_to_launch() == fl.MAV_RESULT_ACCEPTED
+    highest = 0.0
+    for _ in range(round(60.0 / DT_S)):
+        f.step(DT_S)
+        highest = max(highest, -f.model.state.pos_ned_m[2])
+    assert highest == pytest.approx(25.0, abs=0.3)
+    assert f.model.state.on_ground and abs(f.model.state.pos_ned_m[0]) < 0.6
