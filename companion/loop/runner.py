@@ -43,7 +43,7 @@ from companion.io.link import (
 )
 from companion.io.tlog import TlogWriter, default_tlog_path
 from companion.loop.scheduler import FixedRateScheduler, MonotonicClock
-from companion.loop.tick import TickConfig, coast_setpoint, compute_tick, hold_for
+from companion.loop.tick import DEBUG_FIELDS, TickConfig, coast_setpoint, compute_tick, hold_for
 from companion.sim.metrics import tracking_metrics
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
@@ -506,7 +506,7 @@ class FlightRunner:
                 except concurrent.futures.TimeoutError:
                     break  # still computing: coast this tick
                 pending = None
-                self._after_guidance(done)
+                self._after_guidance(done, sent=fresh)
                 last_result = done
                 prev_course = done.course_rad
                 if fresh:
@@ -540,11 +540,17 @@ class FlightRunner:
                 self._event(f"stopping after --max-duration-s {self.opt.max_duration_s:g}")
                 return
 
-    def _after_guidance(self, result) -> None:
-        """Record a finished compute_tick (in the tlog and the flight record); report holds."""
+    def _after_guidance(self, result, sent: bool = True) -> None:
+        """Record a finished compute_tick (in the tlog and the flight record); report holds.
+
+        ``sent`` is False for a result that arrived after its tick had coasted: its setpoint is
+        not sent (the current tick is computed afresh) and its record says so (field 26).
+        """
         sample = result.sample
         time_usec = sample.time_boot_ms * 1000 if sample is not None else 0
-        self.link.record_debug("guidance", result.tick, time_usec, result.debug)
+        row = list(result.debug)
+        row[DEBUG_FIELDS.index("setpoint_sent")] = 1.0 if sent else 0.0
+        self.link.record_debug("guidance", result.tick, time_usec, row)
         self._record(result, sample)
         if result.is_hold != self._in_hold:
             self._in_hold = result.is_hold

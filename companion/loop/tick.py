@@ -73,6 +73,7 @@ DEBUG_FIELDS = (
     "prev_course_cmd_rad",   # 23 the prev_course_cmd_rad this tick was given (NaN for None)
     "prev_course_rad",       # 24 the prev_course_rad this tick was given
     "t_s_residual",          # 25 t_s - float32(t_s): field 1 + field 25 restores the float64 t_s
+    "setpoint_sent",         # 26 1 if this tick's setpoint went on the wire, 0 if it came too late
 )
 
 
@@ -296,6 +297,7 @@ def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float,
         float(prev_course_cmd_rad),
         float(prev_course_rad),
         float(result.t_s) - _float32(result.t_s),
+        1.0,
     ]
     assert len(row) == len(DEBUG_FIELDS)
     return row

@@ -172,3 +172,30 @@ def test_resume_waits_for_the_pilot_to_hand_back_control_then_continues(free_udp
     assert during == [] and len(after) > 10
     assert sum(1 for _, m in peer.commands if m.command == 176 and int(m.param2) == 6) == 1
     assert any("resuming" in e for e in runner.events)
+
+
+class SlowEveryN(StraightLineGuidance):
+    """Every 50th step takes 150 ms (a re-optimisation) and commands a left turn."""
+
+    def step(self, t_s, state):
+        import time as _time
+
+        out = super().step(t_s, state)
+        if len(self.calls) % 50 == 0:
+            _time.sleep(0.15)
+        return GuidanceOutput(a_cmd_m_s2=1.0, phase=out.phase, crosstrack_m=out.crosstrack_m,
+                              s_proj_m=out.s_proj_m)
+
+
+def test_a_slow_guidance_step_coasts_instead_of_freezing_the_setpoint_stream(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", ve=5.0)
+    runner = fly(free_udp_port, tmp_path, peer, SlowEveryN(), max_duration_s=2.0)
+    assert runner.coast_ticks >= 5
+    # The stream never paused for a slow step: gaps stay far below the 150 ms stall.
+    times = [t for t, _ in peer.setpoints]
+    gaps = [b - a for a, b in zip(times, times[1:])]
+    assert max(gaps) < 0.1
+    # Late results are recorded, flagged as not sent.
+    debug = [m for m in tlog_messages(tmp_path / "f.tlog") if m.get_type() == "DEBUG_FLOAT_ARRAY"]
+    sent_flags = [m.data[26] for m in debug]
+    assert 0.0 in sent_flags and sent_flags.count(1.0) > 0.8 * len(sent_flags)
