@@ -301,7 +301,8 @@ class FlightRunner:
     def _wait_position(self) -> None:
         end = time.monotonic() + self.opt.position_timeout_s
         while self.link.state.position is None:
-            self._check_link() if self.link.state.heartbeats else None
+            if self.link.state.heartbeats:
+                self._check_link()
             if time.monotonic() > end:
                 raise LinkError(
                     f"{self.opt.connect}: no valid LOCAL_POSITION_NED within "

@@ -8,8 +8,9 @@ tlog as ``DEBUG_FLOAT_ARRAY "guidance"`` (layout: ``DEBUG_FIELDS``, documented i
 
 Rules applied here (and therefore identically in flight and in replay):
 
-* no sample, or a sample older than ``stale_s`` -> **hold** (zero velocity, zero yaw rate,
-  altitude still held; wings level for the attitude output), the guidance is not stepped;
+* no sample, or a sample older than ``stale_s`` -> **hold** (zero velocity, zero yaw rate, zero
+  vertical velocity: nothing is computed from the old sample; wings level for the attitude
+  output), the guidance is not stepped;
 * the course handed to the guidance is the direction of the measured ground velocity; below
   ``min_course_speed_m_s`` it falls back to the attitude yaw, then to the previous course;
 * the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V);
@@ -188,7 +189,8 @@ def compute_tick(
     course = prev_course_rad
     course_cmd = math.nan
     if hold_reason:
-        setpoint = hold_for(config, alt_m, sample is not None, prev_course_rad)
+        # Stale or missing data: not even the altitude term uses it (vz = 0).
+        setpoint = hold_for(config, alt_m, False, prev_course_rad)
         phase = "hold"
     else:
         course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
@@ -242,7 +244,8 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     alt_m = -sample.z_ned_m if sample is not None else math.nan
     if (sample is None or not (sample_age_s <= config.stale_s) or last is None or last.output is None
             or last.phase in ("finished", "hold") or not math.isfinite(last.output.a_cmd_m_s2)):
-        return hold_for(config, alt_m, sample is not None, last.course_rad if last is not None else 0.0)
+        fresh = sample is not None and sample_age_s <= config.stale_s
+        return hold_for(config, alt_m, fresh, last.course_rad if last is not None else 0.0)
     a_cmd = float(last.output.a_cmd_m_s2) if turning else 0.0
     if config.output == "attitude":
         return attitude_setpoint(a_cmd, last.course_rad, config.max_bank_deg, config.thrust)

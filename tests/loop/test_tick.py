@@ -48,9 +48,10 @@ def test_fresh_sample_flying_east_turning_left():
 @pytest.mark.parametrize("age, reason", [(0.31, "stale"), (math.inf, "stale"), (math.nan, "stale")])
 def test_old_sample_holds_without_stepping_the_guidance(age, reason):
     g = ConstantTurn()
-    r = compute_tick(g, 0, 0.0, sample(), age, CFG)
+    r = compute_tick(g, 0, 0.0, sample(z_ned=-5.0), age, CFG)  # 5 m below the 10 m target
     assert g.calls == []
     assert r.is_hold and r.hold_reason == reason and r.setpoint.is_hold
+    assert r.setpoint.vz_ned_m_s == 0.0  # not even the altitude hold uses the old sample
     assert r.debug[IDX["phase_code"]] == 3 and r.debug[IDX["hold_reason"]] == 1
 
 
