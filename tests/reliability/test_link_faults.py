@@ -19,8 +19,6 @@ for the module) so that the suite stays short; each has its own test of its own 
 
 from __future__ import annotations
 
-import math
-import signal
 import socket
 import time
 from types import SimpleNamespace
