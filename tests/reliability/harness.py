@@ -135,7 +135,8 @@ class Mock(Proc):
                  autopilot: str = "px4"):
         argv = [PY, "-m", "sitl_mock", "--autopilot", autopilot, "--vehicle", "copter", "--link", link,
                 "--sysid", str(sysid), "--speedup", "1", "--start-airborne", "--start-alt-m", "10",
-                "--start-yaw-deg", "90", "--physics-hz", "200"]
+                "--start-yaw-deg", "90", "--physics-hz", "200",
+                "--duration-s", "180"]  # a backstop: no mock outlives a failed test by long
         if tlog is not None:
             argv += ["--tlog", str(tlog)]
         super().__init__(argv + list(extra))
