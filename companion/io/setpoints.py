@@ -163,7 +163,10 @@ def velocity_setpoint(
 
 
 def hold_setpoint(alt_m: float, hold: AltitudeHold | None) -> VelocitySetpoint:
-    """The hold: zero horizontal velocity and yaw rate; vz holds the altitude when ``hold`` is given, else 0."""
+    """The hold: zero horizontal velocity and yaw rate.
+
+    ``vz`` holds the altitude when ``hold`` is given, and is 0 otherwise (stale or no data).
+    """
     vz = hold.vz_ned_m_s(alt_m) if hold is not None else 0.0
     return VelocitySetpoint(0.0, 0.0, vz, 0.0)
 

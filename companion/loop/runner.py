@@ -267,6 +267,13 @@ class FlightRunner:
                 f"{self.opt.link_timeout_s:g}); stopped sending setpoints"
             )
 
+    def _check_mode(self, target_mode: str) -> None:
+        """Before the loop (climb, takeoff): a mode change by the pilot ends the flight."""
+        if not self.link.in_mode(target_mode):
+            self._keepalive_config = None
+            raise FlightAborted(f"pilot override: the vehicle left {target_mode.upper()} before the "
+                                "path started; not switching back")
+
     def _statustext_since(self, n0: int) -> list[str]:
         return [t for _, t in self.link.state.statustext[n0:]]
 
@@ -329,13 +336,14 @@ class FlightRunner:
     def _hold_now(self, config: TickConfig) -> None:
         """Send one hold setpoint (zero velocity, altitude held) for the pre-stream."""
         p = self.link.state.position
+        fresh = p is not None and time.monotonic() - p.received_s <= self.opt.stale_s
         alt = -p.z_ned_m if p is not None else math.nan
         course = 0.0
         if p is not None and math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) > config.min_course_speed_m_s:
             course = frames.course_enu_from_vel_ned(p.vx_ned_m_s, p.vy_ned_m_s)
         elif self.link.state.yaw_ned_rad is not None:
             course = frames.course_enu_from_ned(self.link.state.yaw_ned_rad)
-        self._send(hold_for(config, alt, p is not None, course))
+        self._send(hold_for(config, alt, fresh, course))
 
     def _send(self, sp) -> None:
         self.link.send_setpoint(sp)
@@ -387,6 +395,7 @@ class FlightRunner:
                 return
             if time.monotonic() > end:
                 raise FlightAborted(f"did not climb to {0.9 * alt:.1f} m within 120 s")
+            self._check_mode("offboard")
             self._check_link()
             self._pump(0.02)
 
@@ -426,6 +435,7 @@ class FlightRunner:
                 break
             if time.monotonic() > end:
                 raise FlightAborted(f"takeoff did not reach {0.9 * alt:.1f} m within 120 s")
+            self._check_mode("guided")
             self._check_link()
             self._pump(0.05)
 
@@ -443,7 +453,8 @@ class FlightRunner:
         except LinkError as err:
             self._event(f"path finished: {err}")
             return
-        why = "accepted" if result == 0 else ("no COMMAND_ACK" if result is None else MAV_RESULT_NAMES.get(result))
+        why = ("accepted" if result == 0 else
+               "no COMMAND_ACK" if result is None else MAV_RESULT_NAMES.get(result, str(result)))
         self._event(f"path finished: on-finish {action} -> mode change {why}")
 
     # ------------------------------------------------------------------ the loop
