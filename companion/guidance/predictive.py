@@ -1,6 +1,6 @@
-"""``method: predictive``: look-ahead pursuit whose look-ahead distance is chosen online by
-rollouts of a vehicle model with inner-loop lag and acceleration limit, trading cross-track error
-against acceleration with one knob, lambda.
+"""``method: predictive``: Park's look-ahead pursuit plus a receding-horizon plan, both chosen
+online by rollouts of a vehicle model with inner-loop lag and acceleration limit, trading
+cross-track error against acceleration with one knob, lambda.
 
 Why a new law
 -------------
@@ -8,25 +8,30 @@ The paper's corrector searches its weights with an ideal vehicle (the course tur
 the command changes) and scores cross-track error only. Once the autopilot's inner loop lags the
 command (a multicopter or plane follows a lateral-acceleration or turn-rate demand with a time
 constant of a few tenths of a second), a short look-ahead that tracks tightly in the ideal model
-rings, and nothing in the search sees it. This law keeps the L1 pursuit geometry (Park 2007) and
-changes three things:
+rings, and nothing in the search sees it. This law keeps the L1 pursuit geometry (Park 2007) as
+its feedback core and adds:
 
-1. **Lag-aware command (predictor).** The pursuit command is computed from where the vehicle will
-   be one lag time constant ``tau`` from now, coasting on the lateral acceleration it is already
-   flying (``a_hat``, from the law's own command history through the lag model): by the time the
-   new command is felt, that is where the vehicle is. With ``tau = 0`` this is exactly Park's law.
-2. **Look-ahead chosen online.** Every ``reopt_period_s`` the law rolls out the closed loop
-   (unicycle + first-order lag + ``|a| <= a_max`` + steady wind) over ``horizon_s`` for each of
-   ``n_candidates`` look-ahead distances (geometric between ``l_min_m`` and ``l_max_m``), all
-   candidates at once in numpy, and keeps the one of least cost
-   ``sum_k (d_k^2 + lambda a_k^2) dt`` (d cross-track error, a the commanded acceleration).
-   ``lambda`` (s^4) is the user's one knob: 0 tracks as tightly as the model allows, larger
-   values fly smoother.
-3. **Limits respected.** Every command (executed and in the rollouts) is clipped to ``a_max``, so
-   the flown maximum never exceeds the vehicle's limit and the search knows about saturation.
+1. **A model of the vehicle in the rollouts**: unicycle at constant airspeed, first-order lag
+   ``lag_s`` from the commanded to the achieved lateral acceleration, ``|a| <= a_max_m_s2``, a
+   known steady wind. The law tracks the achieved acceleration ``a_hat`` itself, from its own
+   command history through the same lag model.
+2. **One cost, one knob**: ``sum_k (d_k^2 + lambda u_k^2) dt`` over ``horizon_s`` (d the
+   cross-track error, u the commanded acceleration). ``lambda`` (s^4) is the user's one knob:
+   small values track as tightly as the vehicle allows, larger values fly smoother.
+3. **Look-ahead distance chosen online**: every ``reopt_period_s``, ``n_candidates`` distances
+   (geometric between ``l_min_m`` and ``l_max_m``) are rolled out in one numpy batch and the
+   cheapest is kept.
+4. **A correction plan**: ``plan_segments`` piecewise-constant accelerations over the horizon,
+   added to the pursuit command, refined by Gauss-Newton (see :meth:`PredictiveGuidance.reoptimise`).
+   Between re-optimisations the executed command is ``clip(pursuit(L) + plan(t), +-a_max)``:
+   feedback stays in the loop and the plan adds the anticipation (turning in before a bend,
+   compensating the lag) that feedback alone cannot.
+5. **Limits respected**: every command, executed or rolled out, is clipped to ``a_max``, so the
+   flown maximum never exceeds the vehicle's limit and the search knows about saturation.
 
-Far from the path the look-ahead circle may not reach it; the law then uses
-``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
+Far from the path the look-ahead circle may not reach it; the pursuit then uses
+``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does. An
+open path is continued straight past its end, as the baselines do.
 
 Pure maths (numpy only), deterministic: the same sequence of inputs gives the same outputs.
 ``docs/benchmarks.md`` shows its fronts against the other laws and where a baseline still wins.
