@@ -199,3 +199,20 @@ def test_a_slow_guidance_step_coasts_instead_of_freezing_the_setpoint_stream(fre
     debug = [m for m in tlog_messages(tmp_path / "f.tlog") if m.get_type() == "DEBUG_FLOAT_ARRAY"]
     sent_flags = [m.data[26] for m in debug]
     assert 0.0 in sent_flags and sent_flags.count(1.0) > 0.8 * len(sent_flags)
+
+
+def test_px4_ground_start_offboard_then_arm_then_climb_before_the_path(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", alt=0.0, armed=False)
+    g = StraightLineGuidance()
+    runner = fly(free_udp_port, tmp_path, peer, g, arm=True, max_duration_s=0.5)
+    t_offboard = next(t for t, m in peer.commands if m.command == 176 and int(m.param2) == 6)
+    t_arm = next(t for t, m in peer.commands if m.command == 400)
+    assert peer.setpoints[0][0] + 0.95 <= t_offboard < t_arm
+    # the setpoint stream never paused while arming and climbing (PX4 would leave OFFBOARD)
+    times = [t for t, _ in peer.setpoints if t_offboard <= t]
+    assert max(b - a for a, b in zip(times, times[1:])) < 0.3
+    # the path starts only at 90 % of the mission altitude (10 m), reached by climbing with vz
+    assert any(m.vz < 0 for _, m in peer.setpoints)
+    debug = [m for m in tlog_messages(tmp_path / "f.tlog") if m.get_type() == "DEBUG_FLOAT_ARRAY"]
+    assert debug[0].data[21] >= 9.0  # alt_m of the first guidance tick
+    assert runner.summary["exit"] == "max duration" and g.calls
