@@ -155,3 +155,64 @@ def run_fuzz(tmp_path, per_target: int) -> None:
 
 def test_fuzzing_both_processes_over_udp_drops_and_counts_everything(tmp_path, slow_enabled):
     run_fuzz(tmp_path, FUZZ_SLOW_PER_TARGET if slow_enabled else FUZZ_CI_PER_TARGET)
+
+
+class Flooder(threading.Thread):
+    """Sends pre-built fuzz datagrams as fast as one thread can, for ``duration_s``."""
+
+    def __init__(self, send, fuzzer: Fuzzer, duration_s: float):
+        super().__init__(daemon=True)
+        self.send = send
+        self.data = [fuzzer.datagram()[1] for _ in range(5000)]
+        self.duration_s = duration_s
+        self.sent = 0
+
+    def run(self) -> None:
+        end = time.monotonic() + self.duration_s
+        while time.monotonic() < end:
+            for d in self.data[:500]:
+                self.send(d)
+            self.sent += 500
+            self.data = self.data[500:] + self.data[:500]
+
+
+def test_flood_at_full_speed_degrades_to_hold_never_to_a_stall(tmp_path):
+    """Both processes flooded for 3 s as fast as loopback allows (well over 100,000 datagrams a
+    second, far more than either can read: the kernel drops most, real positions included).
+    The companion's loop must keep ticking and, starved of positions, hold; then resume."""
+    port = free_udp_port()
+    mission = write_mission(tmp_path)
+    comp = Companion(mission, port, tmp_path / "c.tlog", "--max-duration-s", "60")
+    with FaultProxy(port) as proxy:
+        mock = Mock(f"udpout:127.0.0.1:{proxy.port}")
+        try:
+            comp.wait_flying()
+            floods = [Flooder(proxy.inject_to_companion, Fuzzer("companion", 5), 3.0),
+                      Flooder(proxy.inject_to_autopilot, Fuzzer("autopilot", 6), 3.0)]
+            t_end_flood = time.time() + 3.0
+            for f in floods:
+                f.start()
+            for f in floods:
+                f.join(timeout=30)
+            time.sleep(1.5)
+            alive_after = mock.p.poll() is None and comp.p.poll() is None
+            comp.signal(signal.SIGTERM)
+            rc, summary = comp.result(timeout_s=60)
+        finally:
+            mock_summary = mock.stop()
+    assert alive_after, comp.stderr[-2000:] + mock.stderr[-2000:]
+    assert rc == 1 and summary["exit"] == "SIGTERM", comp.stderr[-2000:]
+    assert "Traceback" not in comp.stderr and "Traceback" not in mock.stderr
+    sent = sum(f.sent for f in floods)
+    assert sent > 100_000
+    # The loop kept its rhythm: no tick anywhere near a stall, most ticks on time.
+    assert summary["rate_hz_achieved"] >= 30.0, summary["rate_hz_achieved"]
+    assert summary["tick_ms"]["max"] < 250.0, summary["tick_ms"]
+    # After the flood: guidance again, on fresh positions.
+    g = guidance_records(read_tlog(tmp_path / "c.tlog"))
+    after = [r for r in g if r._timestamp > t_end_flood + 0.5]
+    assert after and all(r.data[F_PHASE] != PHASE_HOLD for r in after)
+    record("flood", sent_total=sent, flood_s=3.0, companion_rejected_total=summary["link"]["rejected_total"],
+           companion_rate_hz=summary["rate_hz_achieved"], companion_tick_ms=summary["tick_ms"],
+           companion_hold_ticks=summary["hold_ticks"], companion_ticks=summary["ticks"],
+           mock_rx_datagrams=mock_summary["rx_datagrams"], mock_overruns=mock_summary["overruns"])
