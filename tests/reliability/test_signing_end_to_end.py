@@ -2,9 +2,9 @@
 
 - The same key on both (the companion given a passphrase, the mock the 64 hex characters of its
   SHA-256, which must be the same key): the flight works; unsigned and wrongly signed messages
-  injected into both directions from the peers' own addresses are rejected, counted, and change
-  nothing (the guidance never sees the forged positions, the vehicle never follows the forged
-  setpoints).
+  injected into both directions from the peers' own addresses, and the autopilot's own signed
+  positions replayed, are rejected, counted, and change nothing (the guidance never sees the
+  forged positions, the vehicle never follows the forged setpoints).
 - The companion without the key: the autopilot drops everything it sends, so OFFBOARD is never
   acknowledged and the companion refuses to fly.
 - Different keys: the companion rejects every autopilot message and never pairs.
@@ -19,9 +19,10 @@ from types import SimpleNamespace
 import pytest
 
 from figures import record
-from harness import PHASE_HOLD, Companion, Mock, free_udp_port, guidance_records, read_tlog, write_mission
+from harness import (MSG_LOCAL_POSITION_NED, PHASE_HOLD, Companion, Mock, free_udp_port, guidance_records,
+                     read_tlog, write_mission)
 from mavframes import Encoder
-from udp_proxy import FaultProxy
+from udp_proxy import FaultProxy, msgid_of
 
 F_PHASE, F_Y = 2, 9
 PASSPHRASE = "correct horse battery staple"
@@ -47,11 +48,19 @@ def test_same_key_flies_and_forged_messages_both_ways_are_rejected_and_counted(t
     unsigned_c = Encoder(1, 191)
     wrong_c = Encoder(1, 191, signing_key=OTHER_KEY)
     n_each = 0
+    replayed = 0
+    captured = []
     with FaultProxy(port) as proxy:
+        def capture(datagram: bytes) -> bool:
+            if msgid_of(datagram) == MSG_LOCAL_POSITION_NED:
+                captured.append(datagram)
+            return False
+        proxy.up.faults.drop_if = capture
         mock = Mock(f"udpout:127.0.0.1:{proxy.port}", "--signing-key-file", str(tmp_path / "mock.key"),
                     tlog=tmp_path / "m.tlog")
         try:
             comp.wait_flying()
+            old = list(captured[-40:])  # genuine signed positions, soon old
             t_ms = 50_000_000
             end = time.monotonic() + 2.0
             while time.monotonic() < end:
@@ -61,6 +70,10 @@ def test_same_key_flies_and_forged_messages_both_ways_are_rejected_and_counted(t
                 # To the autopilot: fly north at 5 m/s.
                 proxy.inject_to_autopilot(unsigned_c.position_target(vx=5.0))
                 proxy.inject_to_autopilot(wrong_c.position_target(vx=5.0))
+                # Genuine, correctly signed positions of the autopilot, replayed: their signing
+                # timestamps are older than the stream's newest, so they fail the signature check.
+                proxy.inject_to_companion(old[n_each % len(old)])
+                replayed += 1
                 n_each += 1
                 t_ms += 20
                 time.sleep(0.02)
@@ -69,7 +82,9 @@ def test_same_key_flies_and_forged_messages_both_ways_are_rejected_and_counted(t
             mock_summary = mock.stop()
     assert rc == 0 and summary["exit"] == "max duration", comp.stderr
     rej = summary["link"]["rejected"]
-    assert rej["unsigned"] >= 0.9 * n_each and rej["bad_signature"] >= 0.9 * n_each, rej
+    assert rej["unsigned"] >= 0.9 * n_each, rej
+    assert rej["bad_signature"] >= 0.9 * (n_each + replayed), rej
+    assert rej["old_sample"] == 0  # the replays never got past the signature check
     assert mock_summary["unsigned"] >= 0.9 * n_each and mock_summary["bad_signature"] >= 0.9 * n_each
     msgs = read_tlog(tmp_path / "c.tlog")
     # Every message received and recorded by the companion is signed (incompat flag 0x01) ...
@@ -82,7 +97,7 @@ def test_same_key_flies_and_forged_messages_both_ways_are_rejected_and_counted(t
     g = [r for r in guidance_records(msgs) if r.data[F_PHASE] != PHASE_HOLD]
     assert g and all(abs(r.data[F_Y]) < 0.5 for r in g)
     assert summary["hold_ticks"] == 0
-    record("signing_same_key", forged_each_kind=n_each, companion_rejected=rej,
+    record("signing_same_key", forged_each_kind=n_each, signed_replays=replayed, companion_rejected=rej,
            mock_unsigned=mock_summary["unsigned"], mock_bad_signature=mock_summary["bad_signature"])
 
 
