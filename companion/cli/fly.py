@@ -20,8 +20,9 @@ def add_flight_options(parser, *, connect_required: bool = True) -> None:
                         help="guidance loop rate (default: the mission's guidance rate_hz, 50 unless set)")
     parser.add_argument("--stale-s", type=float, default=0.3,
                         help="position older than this -> hold (zero velocity, zero yaw rate); default 0.3")
-    parser.add_argument("--link-timeout-s", type=float, default=3.0,
-                        help="no autopilot heartbeat for this long -> stop sending and exit (default 3)")
+    parser.add_argument("--link-timeout-s", type=float, default=5.0,
+                        help="no autopilot heartbeat for this long -> stop sending and exit (default 5: "
+                             "five missed 1 Hz heartbeats, the usual MAVLink link-loss rule)")
     parser.add_argument("--clock", choices=("wall", "autopilot"), default="wall",
                         help="tick on the wall clock, or on the autopilot's time_boot_ms (simulators "
                              "running faster than real time)")

@@ -57,7 +57,7 @@ class FlyOptions:
     rate_hz: float
     autopilot: str = "auto"
     stale_s: float = 0.3
-    link_timeout_s: float = 3.0
+    link_timeout_s: float = 5.0
     heartbeat_timeout_s: float = 15.0
     position_timeout_s: float = 10.0
     arm: bool = False
