@@ -83,7 +83,10 @@ def hostile_link(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("hostile_link")
     port = free_udp_port()
     mission = write_mission(tmp)
-    comp = Companion(mission, port, tmp / "c.tlog", "--max-duration-s", "7", "--target-system", "1")
+    # At 20 % loss, n heartbeats in a row are lost with probability 0.2^n: --link-timeout-s 8
+    # makes a false "heartbeat lost" a one-in-a-million event (the default 5 s: 3e-4 a second).
+    comp = Companion(mission, port, tmp / "c.tlog", "--max-duration-s", "7", "--target-system", "1",
+                     "--link-timeout-s", "8")
     other = Mock(f"udpout:127.0.0.1:{port}", "--start-ned", "500,500", sysid=2, tlog=tmp / "other.tlog")
     time.sleep(1.5)
     stranger = Stranger(port)
