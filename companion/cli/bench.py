@@ -15,11 +15,5 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser("bench", help="benchmarks: paper table, performance, tracking fronts")
     bench_sub = parser.add_subparsers(dest="bench", metavar="BENCH")
     for name in BENCH_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as err:  # TODO(integration): remove once every bench exists
-            if err.name != name:
-                raise
-            continue
-        module.register(bench_sub)
+        importlib.import_module(name).register(bench_sub)
     parser.set_defaults(func=lambda args: parser.print_help() or 2)
