@@ -135,54 +135,11 @@ def mock_args(mission, args, port: int) -> list[str]:
 
 def write_plot(path: Path, mission, record, title: str) -> Path:
     """Path vs track, cross-track error and a_cmd over time, phases shaded."""
-    import matplotlib
+    from companion.plots import flight_figure, save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    t = np.asarray(record.t_s)
-    x = np.asarray(record.x_m)
-    y = np.asarray(record.y_m)
-    d = np.asarray(record.crosstrack_m)
-    a = np.asarray(record.a_cmd_m_s2)
-    phases = list(record.phase)
-    colours = {"midcourse": "#fde2b8", "close_range": "#d4ecd4", "finished": "#dddddd", "hold": "#f6c6c6"}
-    fig = plt.figure(figsize=(11, 7))
-    ax_xy = fig.add_subplot(1, 2, 1)
-    _, px, py = mission.path.sample(800)
-    ax_xy.plot(px, py, "k--", lw=1, label="path")
-    ax_xy.plot(x, y, "b-", lw=1.5, label="flown track")
-    if x.size:
-        ax_xy.plot(x[0], y[0], "go", label="start")
-    ax_xy.set_xlabel("x east [m]")
-    ax_xy.set_ylabel("y north [m]")
-    ax_xy.set_aspect("equal", adjustable="datalim")
-    ax_xy.legend(loc="best", fontsize=8)
-    ax_xy.set_title(title, fontsize=10)
-    ax_d = fig.add_subplot(2, 2, 2)
-    ax_a = fig.add_subplot(2, 2, 4, sharex=ax_d)
-    for ax in (ax_d, ax_a):
-        start = 0
-        for i in range(1, len(phases) + 1):
-            if i == len(phases) or phases[i] != phases[start]:
-                if t.size:
-                    ax.axvspan(t[start], t[min(i, len(t) - 1)], color=colours.get(phases[start], "#eeeeee"),
-                               lw=0, label=phases[start] if ax is ax_d else None)
-                start = i
-    ax_d.plot(t, d, "b-", lw=1)
-    ax_d.set_ylabel("cross-track [m]")
-    handles, labels = ax_d.get_legend_handles_labels()
-    uniq = dict(zip(labels, handles))
-    ax_d.legend(uniq.values(), uniq.keys(), loc="best", fontsize=8)
-    ax_a.plot(t, a, "r-", lw=1)
-    ax_a.set_ylabel("a_cmd [m/s^2]")
-    ax_a.set_xlabel("t [s]")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    fig = flight_figure(mission.path, record.t_s, record.x_m, record.y_m, record.crosstrack_m,
+                        record.a_cmd_m_s2, list(record.phase), title)
+    return save_figure(fig, path)
 
 
 def run(args) -> int:

@@ -183,13 +183,9 @@ def run_show(args) -> int:
 
 
 def _plot(mission, out_png: str) -> None:
-    try:
-        import matplotlib
+    from companion.plots import pyplot, save_figure
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise CompanionError("--plot: expected matplotlib installed (pip install companion[plot])") from None
+    plt = pyplot()
     path = mission.path
     s, x, y = path.sample(2000)
     k = path.curvature_array(s)
@@ -228,12 +224,7 @@ def _plot(mission, out_png: str) -> None:
     ax_k.grid(True, alpha=0.3)
     ax_k.legend(loc="best", fontsize=8)
     fig.tight_layout()
-    try:
-        fig.savefig(out_png, dpi=110)
-    except OSError as err:
-        raise CompanionError(f"{out_png}: cannot write the plot ({err.strerror})") from None
-    finally:
-        plt.close(fig)
+    save_figure(fig, out_png)
 
 
 # ------------------------------------------------------------------------------------ schema

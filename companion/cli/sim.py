@@ -116,40 +116,9 @@ def _finite_or_none(value):
 
 
 def _plot(out_path: str, mission, path, result) -> None:
-    try:
-        import matplotlib
+    from companion.plots import flight_figure, save_figure
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError as err:  # optional dependency
-        raise CompanionError("--plot needs matplotlib: pip install 'companion[plot]'") from err
-    import numpy as np
-
-    _, px, py = path.sample(2000)
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
-    ax = axes[0]
-    ax.plot(px, py, "k-", lw=1, label="path")
-    phases = np.asarray(result.phase)
-    for name, colour in (("midcourse", "tab:orange"), ("close_range", "tab:blue")):
-        mask = phases == name
-        if np.any(mask):
-            ax.plot(result.x_m[mask], result.y_m[mask], ".", ms=1.5, color=colour, label=name)
-    ax.plot([path.start_xy_m[0]], [path.start_xy_m[1]], "ko", ms=4)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x east (m)")
-    ax.set_ylabel("y north (m)")
-    ax.legend(loc="best", fontsize=8)
-    ax.set_title(mission.name)
-    axes[1].plot(result.t_s, result.crosstrack_m)
-    axes[1].set_xlabel("t (s)")
-    axes[1].set_ylabel("cross-track (m, left +)")
-    axes[2].plot(result.t_s, result.a_cmd_m_s2)
-    axes[2].set_xlabel("t (s)")
-    axes[2].set_ylabel("a_cmd (m/s^2, left +)")
-    fig.tight_layout()
-    try:
-        fig.savefig(out_path, dpi=110)
-    except OSError as err:
-        raise CompanionError(f"--plot: cannot write {out_path}: {err.strerror}") from err
-    finally:
-        plt.close(fig)
+    fig = flight_figure(path, result.t_s, result.x_m, result.y_m, result.crosstrack_m,
+                        result.a_cmd_m_s2, list(result.phase), f"{mission.name}: offline simulation",
+                        track_label="simulated track")
+    save_figure(fig, out_path)
