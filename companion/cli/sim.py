@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import math
 
-from companion.errors import CompanionError, MissionError
+from companion.errors import MissionError
 from companion.guidance.types import METHODS, VehicleState
 
 
