@@ -299,7 +299,7 @@ def replay_flight(
                 prev_course = recorded_prev
                 cmd = tk.debug_value("prev_course_cmd_rad")
                 prev_course_cmd = cmd if math.isfinite(cmd) else None
-            t_s = _unround_tick_time(guidance, tk) if companion_log else tk.t_s
+            t_s = _tick_time(tk) if companion_log else tk.t_s
             res = compute_tick(guidance, tk.tick, t_s, tk.sample, tk.sample_age_s, config,
                                yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course,
                                prev_course_cmd_rad=prev_course_cmd)
@@ -416,26 +416,15 @@ def _setpoint_fields(sp) -> dict:
     return {"vx_m_s": nan, "vy_m_s": nan, "vz_m_s": nan, "yaw_rate_rad_s": nan, "roll_rad": sp.roll_ned_rad}
 
 
-def _unround_tick_time(guidance, tk: LoggedTick) -> float:
-    """The tick time to step the guidance with, resolving what the float32 record cannot.
+def _tick_time(tk: LoggedTick) -> float:
+    """The float64 tick time the loop stepped the guidance with (``docs/recording.md``).
 
-    The loop steps the guidance with a float64 ``t_s`` but records it as float32 (0.24 ms
-    resolution at one hour). The guidance re-optimises when ``t_s >= t_next``; when ``t_next``
-    lies within half a float32 step of the recorded time, the record cannot tell on which side
-    the flown time was, and the recorded ``reoptimised`` flag decides. Outside that band (every
-    other tick) the recorded time is used as is, and the flag is not consulted.
+    The record holds ``t_s`` as float32 (0.24 ms resolution at one hour, enough to move a
+    re-optimisation by a tick) plus the float32 residual ``t_s - float32(t_s)``: their sum
+    restores the flown time to about 1e-11 s. Logs without the residual use the float32 time.
     """
-    t = tk.t_s
-    t_next = getattr(guidance, "_t_next_opt", None)  # TwoPhaseGuidance's next re-optimisation time
-    flag = tk.debug_value("reoptimised")
-    if not isinstance(t_next, float) or not math.isfinite(t_next) or not math.isfinite(flag):
-        return t
-    band = 0.5 * float(np.spacing(np.float32(abs(t)))) * (1.0 + 1e-6)
-    if flag == 1.0 and t < t_next <= t + band:
-        return t_next
-    if flag == 0.0 and t - band <= t_next <= t:
-        return math.nextafter(t_next, -math.inf)
-    return t
+    residual = tk.debug_value("t_s_residual") if "t_s_residual" in DEBUG_INDEX else math.nan
+    return tk.t_s + residual if math.isfinite(residual) else tk.t_s
 
 
 def _divergence(tk: LoggedTick, i: int, cols: dict, phase_logged: str, phase_replayed: str,
