@@ -80,7 +80,7 @@ QUICK_SETTINGS = {
 }
 #: The predictive law's default lambda: the summary compares the laws at its a_rms.
 DEFAULT_LAMBDA_S4 = 0.03
-QUICK_SCENARIOS = ("s_turn",)
+QUICK_SCENARIOS = ("s_turn", "paper_sine_h05")
 
 
 # ----------------------------------------------------------------------------- scenarios
@@ -498,7 +498,7 @@ def register(subparsers) -> None:
                     "ideal and the lag model, and compare the Pareto fronts of d_rms against a_rms.")
     parser.add_argument("--json", action="store_true", help="print one JSON object {rows, summary}")
     parser.add_argument("--plot", metavar="DIR", help="write the fronts as PNG files into DIR")
-    parser.add_argument("--quick", action="store_true", help="reduced form for CI (one scenario, two settings per law)")
+    parser.add_argument("--quick", action="store_true", help="reduced form for CI (S-turn and one paper heading, two settings per law)")
     parser.add_argument("--scenario", action="append", metavar="NAME",
                         help=f"only these scenarios (repeatable): {', '.join(scenario_names())}")
     parser.add_argument("--law", action="append", metavar="LAW", choices=LAW_ORDER, help="only these laws (repeatable)")

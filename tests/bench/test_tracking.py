@@ -56,14 +56,16 @@ def test_quick_bench_runs_every_law_in_both_models(capsys):
     rows = doc["rows"]
     laws = ("fixed_l1", "corrector", "ap_l1", "npfg", "pure_pursuit", "predictive")
     assert {(r["model"], r["law"]) for r in rows} == {(m, law) for m in ("ideal", "lag") for law in laws}
-    assert len(rows) == 2 * len(laws) * 2
+    assert len(rows) == 2 * 2 * len(laws) * 2  # scenarios x models x laws x settings
+    assert {r["scenario"] for r in rows} == {"s_turn", "paper_sine_h05"}
     for r in rows:
         for key in ("d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "reach_s"):
             assert r[key] is not None and math.isfinite(r[key]), (r, key)
         assert r["d_rms_m"] <= r["d_max_m"] and r["a_rms_m_s2"] <= r["a_max_m_s2"] + 1e-12
         if r["model"] == "lag" and r["law"] == "predictive":
             assert r["a_max_m_s2"] <= 5.0 + 1e-9  # commands within the vehicle's limit
-    assert {s["model"] for s in doc["summary"]} == {"ideal", "lag"}
+    assert {(s["scenario"], s["model"]) for s in doc["summary"]} == {
+        (sc, m) for sc in ("s_turn", "paper_sine_h05") for m in ("ideal", "lag")}
 
 
 def test_unknown_scenario_is_a_one_line_error(capsys):
