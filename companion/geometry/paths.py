@@ -105,10 +105,13 @@ class Path:
         self._tx = self.tx_table.tolist()
         self._ty = self.ty_table.tolist()
         self._k = self.k_table_1_m.tolist()
-        # Interval table for the vectorised queries: row i holds nodes i and i + 1.
-        table = np.stack([self.x_table_m, self.y_table_m, self.tx_table, self.ty_table,
-                          self.k_table_1_m], axis=1)
-        self._pairs = np.ascontiguousarray(np.stack([table[:-1], table[1:]], axis=1))
+        # Interval table for the vectorised queries: row i holds, for interval i, the cubic
+        # polynomials in u of the point (x, y), of the unnormalised tangent (ax, ay) and of the
+        # curvature, as Horner coefficients ``coef[i, p, :]`` of ``u**p``: the Hermite forms of
+        # the scalar queries expanded once, so a vectorised query is one gather and three
+        # multiply-adds instead of some forty array operations.
+        self._coef = _hermite_coefficients(self.x_table_m, self.y_table_m, self.tx_table,
+                                           self.ty_table, self.k_table_1_m, self._h)
         self.start_xy_m = (self._x[0], self._y[0])
         self.start_heading_rad = math.atan2(self._ty[0], self._tx[0])
         self.end_xy_m = (self._x[-1], self._y[-1])
@@ -436,25 +439,23 @@ class Path:
         return ax / norm, ay / norm
 
     def frame_array(self, s_m) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Vectorised :meth:`frame`: arrays ``(x_m, y_m, tx, ty, curvature_1_m)``."""
+        """Vectorised :meth:`frame`: arrays ``(x_m, y_m, tx, ty, curvature_1_m)``.
+
+        The same cubic Hermite interpolants as :meth:`frame`, evaluated from the per-interval
+        polynomial coefficients (equal to float rounding).
+        """
         i, u = self._locate_array(s_m)
-        h = self._h
-        u2 = u * u
-        u3 = u2 * u
-        h00 = 2 * u3 - 3 * u2 + 1
-        h10 = (u3 - 2 * u2 + u) * h
-        h01 = -2 * u3 + 3 * u2
-        h11 = (u3 - u2) * h
-        # One gather of both end nodes' rows: (..., 2, 5) = (node i / i + 1, x y tx ty k).
-        rows = self._pairs[i]
-        x0, y0, tx0, ty0, k0 = rows[..., 0, 0], rows[..., 0, 1], rows[..., 0, 2], rows[..., 0, 3], rows[..., 0, 4]
-        x1, y1, tx1, ty1, k1 = rows[..., 1, 0], rows[..., 1, 1], rows[..., 1, 2], rows[..., 1, 3], rows[..., 1, 4]
-        px = h00 * x0 + h10 * tx0 + h01 * x1 + h11 * tx1
-        py = h00 * y0 + h10 * ty0 + h01 * y1 + h11 * ty1
-        ax = h00 * tx0 - h10 * k0 * ty0 + h01 * tx1 - h11 * k1 * ty1
-        ay = h00 * ty0 + h10 * k0 * tx0 + h01 * ty1 + h11 * k1 * tx1
+        c = self._coef[i]  # (..., 4, 5): powers of u x (x, y, ax, ay, k)
+        u = u[..., None]
+        r = c[..., 3, :] * u
+        r += c[..., 2, :]
+        r *= u
+        r += c[..., 1, :]
+        r *= u
+        r += c[..., 0, :]
+        ax, ay = r[..., 2], r[..., 3]
         norm = np.hypot(ax, ay)
-        return px, py, ax / norm, ay / norm, k0 + u * (k1 - k0)
+        return r[..., 0], r[..., 1], ax / norm, ay / norm, r[..., 4]
 
     def curvature_array(self, s_m) -> np.ndarray:
         """Vectorised :meth:`curvature`."""
@@ -469,6 +470,28 @@ class Path:
         s = np.linspace(0.0, self.length_m, int(n))
         x, y = self.point_array(s)
         return s, x, y
+
+
+def _hermite_coefficients(x, y, tx, ty, k, h: float) -> np.ndarray:
+    """Per-interval monomial coefficients of the table's cubic Hermite interpolants.
+
+    For interval ``i`` (nodes ``i`` and ``i + 1``, local coordinate ``u`` in [0, 1]) a value
+    ``v0, v1`` with arc-length derivatives ``d0, d1`` interpolates as
+    ``v0 + (h d0) u + (3 (v1 - v0) - h (2 d0 + d1)) u^2 + (2 (v0 - v1) + h (d0 + d1)) u^3``.
+    Columns: x and y (derivative the tangent), the unnormalised tangent ax, ay (derivatives
+    ``-k ty`` and ``k tx``, Frenet) and the curvature (linear). Shape ``(n, 4, 5)``.
+    """
+    def cubic(v, d):
+        v0, v1, d0, d1 = v[:-1], v[1:], d[:-1] * h, d[1:] * h
+        return np.stack([v0, d0, 3.0 * (v1 - v0) - 2.0 * d0 - d1, 2.0 * (v0 - v1) + d0 + d1], axis=1)
+
+    kx, ky = -k * ty, k * tx
+    zero = np.zeros(k.size - 1)
+    lin = np.stack([k[:-1], k[1:] - k[:-1], zero, zero], axis=1)
+    coef = np.stack([cubic(x, tx), cubic(y, ty), cubic(tx, kx), cubic(ty, ky), lin], axis=2)
+    coef = np.ascontiguousarray(coef)
+    coef.setflags(write=False)
+    return coef
 
 
 # ---------------------------------------------------------------------------- construction

@@ -174,13 +174,22 @@ def corrector_command_array(x1_m, y1_m, course_rad, speed_m_s: float, l1_m: floa
     Every argument but ``speed_m_s`` and ``l1_m`` may be an array (broadcast together). With
     ``k2 = 0`` this is exactly constant-L1 guidance (``a12``).
     """
+    return corrector_command_vxy(x1_m, y1_m, np.cos(course_rad), np.sin(course_rad), speed_m_s, l1_m,
+                                 px_m, py_m, tx, ty, x2_m, y2_m, t2x, t2y, k_l1, k1, k2)
+
+
+def corrector_command_vxy(x1_m, y1_m, vx, vy, speed_m_s: float, l1_m: float,
+                          px_m, py_m, tx, ty, x2_m, y2_m, t2x, t2y, k_l1,
+                          k1, k2) -> np.ndarray:
+    """:func:`corrector_command_array` given the unit velocity ``(vx, vy) = (cos, sin)(course)``
+    instead of the course: the rollouts already hold both from their unicycle step."""
     V = speed_m_s
-    vx, vy = np.cos(course_rad), np.sin(course_rad)
+    two_v2 = 2.0 * V * V
     dx2, dy2 = x2_m - x1_m, y2_m - y1_m
     fwd2 = dx2 * vx + dy2 * vy
     lat2 = vx * dy2 - vy * dx2
     d2sq = np.maximum(dx2 * dx2 + dy2 * dy2, 1e-18)
-    a12 = 2.0 * V * V * lat2 / d2sq
+    a12 = two_v2 * lat2 / d2sq
     denom = tx * vx + ty * vy
     ok = (fwd2 > 0.0) & (np.abs(denom) >= PARALLEL_EPS)
     safe = np.where(ok, denom, 1.0)
@@ -189,8 +198,8 @@ def corrector_command_array(x1_m, y1_m, course_rad, speed_m_s: float, l1_m: floa
     dy4 = py_m + lam * ty - y1_m
     lat4 = vx * dy4 - vy * dx4
     lc2 = np.maximum(dx4 * dx4 + dy4 * dy4, 1e-18)
-    a_max = 2.0 * V * V / l1_m
-    a14 = np.clip(2.0 * V * V * lat4 / lc2, -a_max, a_max)
+    a_max = two_v2 / l1_m
+    a14 = np.clip(two_v2 * lat4 / lc2, -a_max, a_max)
     num = V * fwd2
     den = dx2 * t2x + dy2 * t2y
     cap = V_L_MAX_FACTOR * V

@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from companion.geometry.paths import Path
-from companion.guidance.corrector import corrector_command_array
+from companion.guidance.corrector import corrector_command_vxy
 from companion.guidance.types import GuidanceParams
 
 RHO_LOG10_RANGE = (-1.0, 7.0)
@@ -136,18 +136,23 @@ class GainOptimiser:
         lag = math.exp(-dt / tau) if tau > 0 else 0.0
         mean_factor = tau / dt * (1.0 - lag) if tau > 0 else 0.0
         a_ach = np.full(m, a_achieved_m_s2)
-        px, py, tx, ty, k = path.frame_array(s_p)
+        vdt = V * dt
+        frame = path.frame_array
+        # cos and sin of the course: the unicycle step below yields the next ones, so each step
+        # costs one cos and one sin for the whole batch.
+        c_psi, s_psi = np.cos(psi), np.sin(psi)
+        px, py, tx, ty, k = frame(s_p)
         for _ in range(n_steps):
             # Look-ahead: Newton on |p(s) - q|^2 = L1^2 from the previous one, kept ahead of
             # the projection; one step per tick is enough as it moves ~V dt between ticks.
-            s_l = np.maximum(s_l + V * dt, s_p)
-            lx, ly, ltx, lty, lk = path.frame_array(s_l)
+            s_l = np.maximum(s_l + vdt, s_p)
+            lx, ly, ltx, lty, lk = frame(s_l)
             ex, ey = lx - x, ly - y
             f = ex * ex + ey * ey - l1sq
             df = np.maximum(2.0 * (ex * ltx + ey * lty), 0.5 * l1)
             s_l = np.minimum(np.maximum(s_l - np.clip(f / df, -2.0, 2.0), s_p), s_max)
-            lx, ly, ltx, lty, lk = path.frame_array(s_l)
-            a = corrector_command_array(x, y, psi, V, l1, px, py, tx, ty, lx, ly, ltx, lty, lk, k1, k2)
+            lx, ly, ltx, lty, lk = frame(s_l)
+            a = corrector_command_vxy(x, y, c_psi, s_psi, V, l1, px, py, tx, ty, lx, ly, ltx, lty, lk, k1, k2)
             if tau > 0:
                 # First-order inner loop, exact over the step; the step uses its mean.
                 a, a_ach = a + (a_ach - a) * mean_factor, a + (a_ach - a) * lag
@@ -155,17 +160,19 @@ class GainOptimiser:
             w = a / V
             dpsi = w * dt
             psi_new = psi + dpsi
+            c_new, s_new = np.cos(psi_new), np.sin(psi_new)
             small = np.abs(dpsi) < 1e-9
             w_safe = np.where(small, 1.0, w)
-            x = x + np.where(small, V * dt * np.cos(psi), V / w_safe * (np.sin(psi_new) - np.sin(psi)))
-            y = y + np.where(small, V * dt * np.sin(psi), -V / w_safe * (np.cos(psi_new) - np.cos(psi)))
-            psi = psi_new
+            x = x + np.where(small, vdt * c_psi, V / w_safe * (s_new - s_psi))
+            y = y + np.where(small, vdt * s_psi, -V / w_safe * (c_new - c_psi))
+            psi, c_psi, s_psi = psi_new, c_new, s_new
             # Projection after the step: one Newton step on (p(s) - q) . t(s) = 0 from the
             # previous projection (the vehicle moved V dt), then the cross-track error there.
             dx, dy = px - x, py - y
             g = dx * tx + dy * ty
             dg = np.maximum(1.0 + k * (dy * tx - dx * ty), 0.2)
             s_p = np.minimum(np.maximum(s_p - g / dg, 0.0), s_max)
-            px, py, tx, ty, k = path.frame_array(s_p)
-            sq_sum += (px - x) ** 2 + (py - y) ** 2
+            px, py, tx, ty, k = frame(s_p)
+            ex, ey = px - x, py - y
+            sq_sum += ex * ex + ey * ey
         return sq_sum / n_steps
