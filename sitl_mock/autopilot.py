@@ -23,7 +23,7 @@ from sitl_mock.flight import FlightLogic
 from sitl_mock.links import DROP_REASONS, Link, LinkSpec, RxCounters, Tlog
 from sitl_mock.personality import (
     ARDUPILOT_STREAM_GROUPS, MSG_ATTITUDE, MSG_AUTOPILOT_VERSION, MSG_EXTENDED_SYS_STATE, MSG_GLOBAL_POSITION_INT,
-    MSG_GPS_RAW_INT, MSG_HOME_POSITION, MSG_LOCAL_POSITION_NED, MSG_POSITION_TARGET_LOCAL_NED, MSG_SYS_STATUS,
+    MSG_GPS_GLOBAL_ORIGIN, MSG_GPS_RAW_INT, MSG_HOME_POSITION, MSG_LOCAL_POSITION_NED, MSG_POSITION_TARGET_LOCAL_NED, MSG_SYS_STATUS,
     MSG_SYSTEM_TIME, MSG_VFR_HUD, PX4_DEFAULT_STREAMS_HZ, STREAMABLE_MSG_IDS, Personality,
 )
 from sitl_mock.vehicle import VehicleModel, VehicleParams
@@ -71,6 +71,7 @@ class MockConfig:
     start_yaw_deg: float = 0.0
     start_airborne: bool = False
     origin: tuple[float, float, float] | None = None
+    ekf_origin: bool = True  # False: the estimator has no global origin (no GPS): no GPS_GLOBAL_ORIGIN
     vehicle_params: VehicleParams = field(default_factory=VehicleParams)
     offboard_loss_s: float = 0.5
     guided_timeout_s: float = 3.0
@@ -156,6 +157,9 @@ class MockAutopilot:
                     self._set_stream(link, msgid, 1.0 / hz)
         self._last_mode_name = self.flight.mode.name
         self._last_armed = self.flight.armed
+        # PX4's GPS_GLOBAL_ORIGIN stream and ArduPilot's EKF both announce the origin once, when the
+        # estimator sets it (here: the first physics step); afterwards only on request.
+        self._origin_announced = False
 
     # ------------------------------------------------------------------ time
     def _tlog_clock(self) -> float:
@@ -188,6 +192,12 @@ class MockAutopilot:
 
     def _service_streams(self) -> None:
         t = self.sim_t_s
+        if not self._origin_announced:
+            self._origin_announced = True
+            origin = self._build(MSG_GPS_GLOBAL_ORIGIN)
+            if origin is not None:
+                for link in self.links:
+                    link.send(origin)
         if t >= self._heartbeat_next_s:
             self._heartbeat_next_s += HEARTBEAT_INTERVAL_S
             hb = self._build(0)
@@ -251,6 +261,13 @@ class MockAutopilot:
             h = self.home_ned_m
             return mav.home_position_encode(lat, lon, int(alt * 1000), h[0], h[1], h[2], [1.0, 0.0, 0.0, 0.0],
                                             0.0, 0.0, 0.0, int(self.sim_t_s * 1e6))
+        if msgid == MSG_GPS_GLOBAL_ORIGIN:
+            if not self.config.ekf_origin:
+                return None
+            lat0, lon0, alt0 = self.origin
+            # time_usec: time since boot of the origin's setting (as PX4 sends it).
+            return mav.gps_global_origin_encode(int(round(lat0 * 1e7)), int(round(lon0 * 1e7)),
+                                                int(round(alt0 * 1000)), 0)
         if msgid == MSG_SYSTEM_TIME:
             return mav.system_time_encode(int(self._tlog_clock() * 1e6), ms)
         if msgid == MSG_POSITION_TARGET_LOCAL_NED:
@@ -410,8 +427,11 @@ class MockAutopilot:
                 self._ack(link, command, fl.MAV_RESULT_ACCEPTED, src)
                 self._send_counters([link])
                 return None
-            msg = self._build(msgid) if msgid in STREAMABLE_MSG_IDS + (MSG_AUTOPILOT_VERSION, 0) else None
-            if msg is None and msgid != MSG_POSITION_TARGET_LOCAL_NED:
+            requestable = STREAMABLE_MSG_IDS + (MSG_AUTOPILOT_VERSION, MSG_GPS_GLOBAL_ORIGIN, 0)
+            msg = self._build(msgid) if msgid in requestable else None
+            # Without an origin, a request for GPS_GLOBAL_ORIGIN is accepted and answered with
+            # nothing (ArduPilot's send_gps_global_origin returns early when the EKF has no origin).
+            if msg is None and msgid not in (MSG_POSITION_TARGET_LOCAL_NED, MSG_GPS_GLOBAL_ORIGIN):
                 return fl.MAV_RESULT_DENIED
             self._ack(link, command, fl.MAV_RESULT_ACCEPTED, src)
             if msg is not None:

@@ -57,6 +57,9 @@ def register(subparsers) -> None:
     p.add_argument("--target-system", type=int, default=None, help="pair only with this autopilot system id")
     p.add_argument("--heartbeat-timeout-s", type=float, default=15.0,
                    help="wait this long for the autopilot's first heartbeat (default 15)")
+    p.add_argument("--origin-timeout-s", type=float, default=10.0,
+                   help="geodetic missions: wait this long for the autopilot's GPS_GLOBAL_ORIGIN, "
+                        "else refuse to fly (default 10)")
     p.set_defaults(func=run)
 
 
@@ -87,6 +90,7 @@ def options_from_args(args, mission, **overrides):
         source_component=getattr(args, "source_component", 191),
         target_system=getattr(args, "target_system", None),
         heartbeat_timeout_s=getattr(args, "heartbeat_timeout_s", 15.0),
+        origin_timeout_s=getattr(args, "origin_timeout_s", 10.0),
     )
     kw.update(overrides)
     return FlyOptions(**kw)

@@ -55,6 +55,7 @@ MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 MAV_AUTOPILOT_PX4 = 12
 MSG_ID_LOCAL_POSITION_NED = 32
 MSG_ID_ATTITUDE = 30
+MSG_ID_GPS_GLOBAL_ORIGIN = 49
 
 MAV_CMD_NAV_LAND = 21
 MAV_CMD_NAV_TAKEOFF = 22
@@ -62,6 +63,7 @@ MAV_CMD_DO_SET_MODE = 176
 MAV_CMD_DO_CHANGE_SPEED = 178
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MAV_CMD_REQUEST_MESSAGE = 512
 MAV_CMD_GUIDED_CHANGE_SPEED = 43000
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 MAV_MODE_FLAG_SAFETY_ARMED = 128
@@ -268,6 +270,22 @@ class LinkState:
     acks: dict = field(default_factory=dict)  # command -> (result, monotonic time)
     heartbeats: int = 0
     positions: int = 0
+    global_origin: "GlobalOrigin | None" = None  # newest GPS_GLOBAL_ORIGIN (the EKF's local origin)
+
+
+@dataclass(frozen=True)
+class GlobalOrigin:
+    """The autopilot's local-frame origin as GPS_GLOBAL_ORIGIN reports it.
+
+    ``lat_deg``/``lon_deg`` are WGS-84 (the message carries degE7); ``alt_amsl_m`` is the
+    message's altitude, which both PX4 and ArduPilot give above mean sea level (mm on the wire),
+    not above the ellipsoid. ``received_s`` is the link clock at reception.
+    """
+
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    received_s: float
 
 
 class _TlogTap:
@@ -514,6 +532,12 @@ class MavLink:
             del st.statustext[:-50]
         elif mtype == "COMMAND_ACK":
             st.acks[int(msg.command)] = (int(msg.result), now)
+        elif mtype == "GPS_GLOBAL_ORIGIN":
+            lat, lon, alt = msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and abs(alt) < 1.0e5):
+                self.rejected["out_of_range"] += 1
+                return False
+            st.global_origin = GlobalOrigin(lat, lon, alt, received_s=now)
         elif hasattr(msg, "time_boot_ms"):
             tb = getattr(msg, "time_boot_ms")
             if isinstance(tb, int) and tb >= 0:
@@ -605,6 +629,36 @@ class MavLink:
     def request_message_interval(self, msg_id: int, rate_hz: float, **kw) -> int | None:
         """MAV_CMD_SET_MESSAGE_INTERVAL for ``msg_id`` at ``rate_hz``; returns the MAV_RESULT."""
         return self.command_long(MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, 1.0e6 / rate_hz), **kw)
+
+    def request_global_origin(self, timeout_s: float, *, resend_s: float = 1.0,
+                              idle: Callable[[], None] | None = None) -> GlobalOrigin | None:
+        """Ask for GPS_GLOBAL_ORIGIN (MAV_CMD_REQUEST_MESSAGE 49) until one arrives or ``timeout_s``.
+
+        PX4 sends GPS_GLOBAL_ORIGIN once when its estimator sets the origin and on request; ArduPilot
+        sends it when the EKF origin is set and on request, but answers a request with nothing (its
+        ACK still ACCEPTED) while the EKF has no origin. So the request is repeated every
+        ``resend_s`` and only the message itself counts, never the ACK. An origin already held
+        (sent unsolicited since pairing) is returned at once. Returns None after ``timeout_s``.
+        """
+        if self.state.global_origin is not None:
+            return self.state.global_origin
+        ts, tc = self._target()
+        deadline = self.clock() + timeout_s
+        next_send = self.clock()
+        attempt = 0
+        while self.state.global_origin is None:
+            now = self.clock()
+            if now >= deadline:
+                return None
+            if now >= next_send:
+                self._mav.command_long_send(ts, tc, MAV_CMD_REQUEST_MESSAGE, attempt,
+                                            float(MSG_ID_GPS_GLOBAL_ORIGIN), 0, 0, 0, 0, 0, 0)
+                attempt = min(attempt + 1, 255)
+                next_send = now + resend_s
+            self.poll(min(0.02, max(0.0, deadline - now)))
+            if idle is not None:
+                idle()
+        return self.state.global_origin
 
     def mode_number(self, name: str) -> tuple[int, int, int]:
         """(base_mode flags, custom main mode, sub mode) of a mode name for this autopilot."""

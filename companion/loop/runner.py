@@ -14,6 +14,11 @@ Sequence (details and the reasons in ``docs/flying.md`` and ``docs/failsafes.md`
    vehicle leaving OFFBOARD/GUIDED -> stop commanding at once and never switch back;
 7. at the end of the path, the ``on_finish`` action for this autopilot.
 
+A ``geodetic`` mission is moved onto the autopilot's own local origin before step 4: the runner
+asks for GPS_GLOBAL_ORIGIN (MAV_CMD_REQUEST_MESSAGE 49) and translates the path and start by the
+ENU offset of the mission's origin from it (:func:`onto_autopilot_origin`); no origin within
+``origin_timeout_s`` -> LinkError (exit 2), nothing flown. Local-frame missions are untouched.
+
 Clocks: ``wall`` ticks on the monotonic clock; ``autopilot`` ticks on the autopilot's
 ``time_boot_ms`` (used with a simulator running faster than real time).
 """
@@ -33,9 +38,11 @@ from typing import Callable
 import numpy as np
 
 from companion.errors import CompanionError, FlightAborted, LinkError
-from companion.geometry import frames
+from companion.geometry import frames, geodetic
+from companion.geometry.paths import Path as RefPath
 from companion.io.link import (
     MAV_CMD_SET_MESSAGE_INTERVAL,
+    GlobalOrigin,
     MAV_RESULT_NAMES,
     MSG_ID_ATTITUDE,
     MSG_ID_LOCAL_POSITION_NED,
@@ -78,10 +85,11 @@ class FlyOptions:
     offboard_prestream_s: float = 1.0
     max_coast_turn_s: float = 0.3  # coasting keeps turning this long (loop clock), then flies straight
     attitude_rate_hz: float = 20.0
+    origin_timeout_s: float = 10.0  # geodetic missions: wait this long for GPS_GLOBAL_ORIGIN
 
     def __post_init__(self) -> None:
         for name in ("rate_hz", "stale_s", "link_timeout_s", "heartbeat_timeout_s", "arm_timeout_s",
-                     "max_start_distance_m", "position_timeout_s"):
+                     "max_start_distance_m", "position_timeout_s", "origin_timeout_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise CompanionError(f"--{name.replace('_', '-')}: expected a number > 0, got {value!r}")
@@ -184,6 +192,71 @@ def distance_to_path_m(path, x_m: float, y_m: float, n: int = 4000) -> float:
     return float(np.min(np.hypot(xs - x_m, ys - y_m)))
 
 
+@dataclass(frozen=True)
+class OriginShift:
+    """How a geodetic mission was moved onto the autopilot's local origin.
+
+    Attributes
+    ----------
+    east_m, north_m : ENU position of the mission's ``origin`` in the autopilot's local frame
+        (the translation applied to the path and the start).
+    max_error_m : the largest horizontal distance, over the path's nodes, between the translated
+        point and the exact WGS-84 transform of that point into the autopilot's frame.
+    autopilot_origin : the GPS_GLOBAL_ORIGIN used.
+    """
+
+    east_m: float
+    north_m: float
+    max_error_m: float
+    autopilot_origin: GlobalOrigin
+
+
+def onto_autopilot_origin(mission, ap_origin: GlobalOrigin):
+    """A geodetic mission with its path and start translated into the autopilot's local ENU frame.
+
+    The mission's ENU frame is centred on ``mission.origin``; LOCAL_POSITION_NED is centred on the
+    autopilot's EKF origin ``ap_origin``. The offset (east, north) of ``mission.origin`` seen from
+    ``ap_origin`` is computed exactly (WGS-84 -> ECEF -> ENU, :mod:`companion.geometry.geodetic`)
+    and added to every path node and to the start; tangents and curvature are unchanged.
+
+    Both points are taken at one height, the mission's flight height ``origin.alt_m +
+    altitude_m``: GPS_GLOBAL_ORIGIN's altitude is above mean sea level while ``origin.alt_m`` is
+    above the ellipsoid, and the geoid separation (up to ~100 m) must not leak into the offset.
+    Heights only scale horizontal distances by ~1.6e-7 per metre, so this costs nothing.
+
+    A translation ignores the rotation between the two ENU frames (their axes differ by about
+    d/R, d the distance between the origins, R the Earth's radius, plus a meridian convergence
+    of about (d_east/R) tan(lat) about the vertical). A path point r metres from the mission's
+    origin is therefore misplaced by about r d (1 + |tan lat|) / R: 1 km of path 100 m from the
+    EKF origin at 47 deg gives ~3 cm. The exact error over the path's nodes is measured and
+    returned in :class:`OriginShift` (``max_error_m``) so the flight can report it.
+
+    Returns
+    -------
+    (mission, OriginShift)
+    """
+    o = mission.origin
+    height_m = o.alt_m + mission.altitude_m
+    e, n, _ = geodetic.enu_from_geodetic(o.lat_deg, o.lon_deg, height_m,
+                                         ap_origin.lat_deg, ap_origin.lon_deg, height_m)
+    east_m, north_m = float(e), float(n)
+    path = mission.path
+    xs = np.asarray(path.x_table_m)
+    ys = np.asarray(path.y_table_m)
+    # Exact: path nodes (ENU about the mission origin, at flight height) -> WGS-84 -> ENU about
+    # the autopilot's origin at the same height.
+    lat, lon, h = geodetic.geodetic_from_enu(xs, ys, np.zeros_like(xs), o.lat_deg, o.lon_deg, height_m)
+    ex, ny, _ = geodetic.enu_from_geodetic(lat, lon, h, ap_origin.lat_deg, ap_origin.lon_deg, height_m)
+    max_error_m = float(np.max(np.hypot(ex - (xs + east_m), ny - (ys + north_m))))
+    moved = RefPath(path.s_table_m, xs + east_m, ys + north_m, path.tx_table, path.ty_table,
+                    path.k_table_1_m, path.closed)
+    start = mission.start
+    if start is not None:
+        start = dataclasses.replace(start, x_m=start.x_m + east_m, y_m=start.y_m + north_m)
+    shifted = dataclasses.replace(mission, path=moved, start=start)
+    return shifted, OriginShift(east_m, north_m, max_error_m, ap_origin)
+
+
 def write_mission_beside(tlog_path: Path, mission) -> Path:
     out = Path(str(tlog_path) + ".mission.yaml")
     out.write_text(mission.source_text or "", encoding="utf-8")
@@ -217,6 +290,7 @@ class FlightRunner:
         self.tlog: TlogWriter | None = None
         self.tlog_path = Path(options.tlog_path) if options.tlog_path else default_tlog_path()
         self.summary: dict = {}
+        self.origin_shift: OriginShift | None = None
         self.events: list[str] = []
         self.exit_reason = "not started"
         self.setpoints_sent = 0
@@ -304,6 +378,25 @@ class FlightRunner:
             if result != 0:
                 why = "no COMMAND_ACK" if result is None else MAV_RESULT_NAMES.get(result, str(result))
                 self._event(f"warning: SET_MESSAGE_INTERVAL {name} {rate:g} Hz: {why}")
+
+    def _align_geodetic_mission(self) -> None:
+        """Geodetic mission: move its path onto the autopilot's EKF origin (or refuse to fly)."""
+        if self.mission.frame != "geodetic" or self.mission.origin is None:
+            return
+        origin = self.link.request_global_origin(self.opt.origin_timeout_s, idle=self._idle)
+        if origin is None:
+            raise LinkError(
+                f"{self.opt.connect}: no GPS_GLOBAL_ORIGIN within --origin-timeout-s "
+                f"{self.opt.origin_timeout_s:g} (the autopilot has no local origin yet: no GPS fix?); "
+                f"{self.mission.source_name} is geodetic and cannot be placed; not flying"
+            )
+        self.mission, shift = onto_autopilot_origin(self.mission, origin)
+        self.origin_shift = shift
+        self._event(
+            f"autopilot origin {origin.lat_deg:.7f}, {origin.lon_deg:.7f}: mission origin is at ENU "
+            f"({shift.east_m:+.2f}, {shift.north_m:+.2f}) m; path translated (max error of the "
+            f"translation {shift.max_error_m * 1000:.1f} mm)"
+        )
 
     def _wait_position(self) -> None:
         end = time.monotonic() + self.opt.position_timeout_s
@@ -631,6 +724,7 @@ class FlightRunner:
             if config.output == "attitude" and (self.opt.on_finish or self.mission.on_finish) == "land":
                 raise FlightAborted("--on-finish land is not available for a fixed-wing flight; use rtl or loiter")
             self._request_streams()
+            self._align_geodetic_mission()
             self._wait_position()
             self._check_start_distance()
             guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
@@ -683,6 +777,9 @@ class FlightRunner:
             "tlog": str(self.tlog_path),
             "link": self.link.counters() if self.link is not None else {},
         })
+        if self.origin_shift is not None:
+            m["origin_offset_enu_m"] = [self.origin_shift.east_m, self.origin_shift.north_m]
+            m["origin_translation_error_m"] = self.origin_shift.max_error_m
         if self.link is not None and self.link.info is not None:
             m["autopilot"] = self.link.info.autopilot
             m["vehicle"] = self.link.info.vehicle
