@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 import mmap
+import operator
 import os
 import re
 import struct
@@ -81,6 +82,10 @@ MSG_ID: dict[str, int] = {cls.msgname: msg_id for msg_id, cls in mavlink.mavlink
 MSG_NAME: dict[int, str] = {msg_id: cls.msgname for msg_id, cls in mavlink.mavlink_map.items()}
 
 _TIMESTAMP = struct.Struct(">Q")
+_MAX_BACKWARD_US = int(MAX_BACKWARD_S * 1e6)
+_MAX_FORWARD_US = int(MAX_FORWARD_S * 1e6)
+_MAVLINK_MAP = mavlink.mavlink_map
+_new_tuple = tuple.__new__  # a named tuple from a tuple, without its Python-level __new__
 _START_BYTES = re.compile(b"[\xfd\xfe]")
 
 
@@ -133,6 +138,16 @@ class LogWarning:
         return {"offset": self.offset, "length": self.length, "reason": self.reason}
 
 
+def _crc16_extra(buf: bytes, extra: int) -> int:
+    """:func:`_crc16` of ``buf`` followed by the byte ``extra`` (the message's CRC_EXTRA)."""
+    if _mcrf4xx is not None:
+        return _mcrf4xx(_EXTRA_BYTES[extra], _mcrf4xx(buf, 0xFFFF))
+    return _crc16(buf + _EXTRA_BYTES[extra])
+
+
+_EXTRA_BYTES = [bytes((b,)) for b in range(256)]
+
+
 def _crc16(buf: bytes) -> int:
     """CRC-16/MCRF4XX (X.25) of ``buf``, as MAVLink computes it."""
     if _mcrf4xx is not None:
@@ -161,11 +176,20 @@ class _LightDecoder:
         base = namedtuple(f"{cls.msgname.title().replace('_', '')}Fields", cls.fieldnames)
         msgname = cls.msgname
         self.tuple_cls = type(base.__name__, (base,), {"__slots__": (), "get_type": lambda self: msgname})
+        # Messages of scalar fields only (most of them) map wire order to field order with one
+        # itemgetter; the others (arrays, text) go through the general loop.
+        scalar = all(length == 1 and not cls.fieldtypes[i].startswith("char")
+                     for i, length in enumerate(cls.lengths))
+        tips = [tip for tip, _ in self.plan]
+        self._scalar_getter = operator.itemgetter(*tips) if scalar and len(tips) > 1 else None
+        self._new = tuple.__new__
 
     def decode(self, payload: bytes):
         if len(payload) < self.size:
             payload = payload + bytes(self.size - len(payload))
         t = self.unpacker.unpack_from(payload)
+        if self._scalar_getter is not None:
+            return self._new(self.tuple_cls, self._scalar_getter(t))
         values = []
         for tip, length in self.plan:
             field = t[tip]
@@ -359,23 +383,76 @@ class TlogReader:
     def __iter__(self) -> Iterator[LogRecord]:
         pos = 0
         prev_us: int | None = None
-        size = len(self._data)
+        data = self._data
+        size = len(data)
+        fast = self.light or self.decode_ids is not None
         while pos < size:
             self.position = pos
-            try:
-                record, nxt, time_us = self._try_record(pos, prev_us)
-            except _Reject as why:
-                found = self._resync(pos, prev_us)
-                if found is None:
-                    self._warn(pos, size - pos, str(why))
-                    break
-                new_pos, (record, nxt, time_us) = found
-                self._warn(pos, new_pos - pos, str(why))
+            found = self._fast_record(data, size, pos, prev_us) if fast and prev_us is not None else None
+            if found is not None:
+                record, nxt, time_us = found
+            else:
+                try:
+                    record, nxt, time_us = self._try_record(pos, prev_us)
+                except _Reject as why:
+                    found = self._resync(pos, prev_us)
+                    if found is None:
+                        self._warn(pos, size - pos, str(why))
+                        break
+                    new_pos, (record, nxt, time_us) = found
+                    self._warn(pos, new_pos - pos, str(why))
             self.records += 1
             prev_us = time_us
             pos = nxt
             yield record
         self.position = size
+
+    def _fast_record(self, data, size: int, pos: int, prev_us: int):
+        """The common case of :meth:`_try_record` in one function: a whole, known, checksummed
+        record that needs no pymavlink decoding (light or not decoded). Returns the same tuple,
+        or None whenever anything is unusual (the caller then runs :meth:`_try_record`, which
+        accepts or rejects it with the reason)."""
+        start = pos + TIMESTAMP_BYTES
+        if start + HEADER_BYTES_V2 > size:
+            return None
+        (time_us,) = _TIMESTAMP.unpack_from(data, pos)
+        if not -_MAX_BACKWARD_US < time_us - prev_us < _MAX_FORWARD_US:  # strictly: the float check decides the edges
+            return None
+        magic = data[start]
+        if magic == MAGIC_V2:
+            flags = data[start + 2]
+            msg_id = data[start + 7] | (data[start + 8] << 8) | (data[start + 9] << 16)
+            header = HEADER_BYTES_V2
+            sig = SIGNATURE_BYTES if flags & IFLAG_SIGNED else 0
+            src_system, src_component, version = data[start + 5], data[start + 6], 2
+        elif magic == MAGIC_V1:
+            msg_id = data[start + 5]
+            header = HEADER_BYTES_V1
+            sig = 0
+            src_system, src_component, version = data[start + 3], data[start + 4], 1
+        else:
+            return None
+        crc_end = start + header + data[start + 1] + CRC_BYTES
+        end = crc_end + sig
+        if end > size:
+            return None
+        cls = _MAVLINK_MAP.get(msg_id)
+        if cls is None:
+            return None
+        decode = self.decode_ids is None or msg_id in self.decode_ids
+        if decode and not self.light:
+            return None
+        body = data[start + 1: crc_end - CRC_BYTES]
+        if _crc16_extra(body, cls.crc_extra) != data[crc_end - 2] | (data[crc_end - 1] << 8):
+            return None
+        msg = None
+        if decode:
+            dec = _LIGHT.get(msg_id) or _light_decoder(msg_id)
+            try:
+                msg = dec.decode(body[header - 1:])
+            except struct.error:
+                return None
+        return _new_tuple(LogRecord, (time_us * 1e-6, pos, msg_id, src_system, src_component, msg, version)), end, time_us
 
 
 def read_tlog(path: str | Path, decode_ids: Iterable[int] | None = None) -> tuple[list[LogRecord], list[LogWarning]]:

@@ -31,7 +31,7 @@ from typing import Callable
 
 from companion.errors import LogError
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
-from companion.io.state import PositionSample, position_problem
+from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
 from companion.loop.tick import DEBUG_FIELDS, PHASE_CODES
 from companion.replay.progress import ByteProgress
 
@@ -130,9 +130,17 @@ def _setpoint(msg) -> LoggedSetpoint:
 
 
 def _sample(msg) -> PositionSample | None:
-    if position_problem(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz) is not None:
-        return None
-    return PositionSample(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
+    t, x, y, z, vx, vy, vz = msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz
+    # The usual sample (decoded floats in range, NaN fails every comparison) skips the general
+    # check; anything else gets position_problem's verdict.
+    if not (type(x) is float and type(y) is float and type(z) is float and type(vx) is float
+            and type(vy) is float and type(vz) is float and type(t) is int and t >= 0
+            and -MAX_POSITION_M <= x <= MAX_POSITION_M and -MAX_POSITION_M <= y <= MAX_POSITION_M
+            and -MAX_POSITION_M <= z <= MAX_POSITION_M and -MAX_VELOCITY_M_S <= vx <= MAX_VELOCITY_M_S
+            and -MAX_VELOCITY_M_S <= vy <= MAX_VELOCITY_M_S and -MAX_VELOCITY_M_S <= vz <= MAX_VELOCITY_M_S):
+        if position_problem(t, x, y, z, vx, vy, vz) is not None:
+            return None
+    return PositionSample(t, x, y, z, vx, vy, vz)
 
 
 def _sample_from_debug(row: list[float], time_boot_ms: int) -> PositionSample | None:
@@ -217,7 +225,7 @@ def read_flight(
                 name = msg.name.decode("ascii", "replace") if isinstance(msg.name, bytes) else str(msg.name)
                 if name != GUIDANCE_ARRAY_NAME:
                     continue
-                row = [float(v) for v in msg.data[:N_DEBUG]]
+                row = list(map(float, msg.data[:N_DEBUG]))
                 sender = (rec.src_system, rec.src_component)
                 # the autopilot this sender commands: its last setpoint's target, else its own
                 # system (a companion shares its vehicle's system id), else the first to send positions
