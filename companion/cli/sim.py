@@ -3,6 +3,7 @@
     companion sim missions/paper_sine.yaml
     companion sim missions/paper_sine.yaml --method fixed_l1 --heading-deg 24.118 --json
     companion sim missions/paper_far_start.yaml --plot far.png
+    companion sim missions/racetrack.yaml --method predictive
 
 The start is the mission's ``start:`` unless ``--start X,Y`` / ``--heading-deg H`` override it;
 with neither, the vehicle starts on the path start with the path's heading.
@@ -90,8 +91,13 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
+    if params.method == "predictive":  # chooses its own look-ahead: show its tuning instead of L1
+        tuning = (f"lambda {params.lambda_s4:g} s^4, lag {params.rollout_tau_s:g} s, "
+                  f"a_max {params.a_max_m_s2:g} m/s^2")
+    else:
+        tuning = f"L1 {params.l1_m:g} m"
     print(f"mission {mission.name}: method {params.method}, start ({x0:.3f}, {y0:.3f}) m, "
-          f"heading {math.degrees(h0):.3f} deg, V {mission.speed_m_s:g} m/s, L1 {params.l1_m:g} m")
+          f"heading {math.degrees(h0):.3f} deg, V {mission.speed_m_s:g} m/s, {tuning}")
     end = "path end reached" if result.finished else "time limit reached"
     print(f"{end} after {metrics['duration_s']:.2f} s ({metrics['samples']} ticks at {params.rate_hz:g} Hz)")
     if plan is not None:

@@ -22,16 +22,23 @@ Phases
 
     See :mod:`companion.guidance.midcourse` for the circles, the contact point and the switch.
 ``close_range``
-    Constant L1 (``method="fixed_l1"``) or the corrector-aided command with online gains
-    (``method="corrector"``). When no path point ahead leaves the L1 circle (the vehicle is more
+    Constant L1 (``method="fixed_l1"``), the corrector-aided command with online gains
+    (``method="corrector"``), or the predictive law (``method="predictive"``: this phase is
+    delegated to one :class:`~companion.guidance.predictive.PredictiveGuidance` built from
+    ``lambda_s4``, ``rollout_tau_s`` (its lag), ``a_max_m_s2`` and the wind; it chooses its own
+    look-ahead between 3 and 30 m, so ``l1_m`` is not used there; its outputs carry ``k1 = k2 =
+    NaN`` (no corrector weights) and ``extra`` holds ``lookahead_m``, ``correction_m_s2`` and
+    ``a_hat_m_s2``; ``reoptimised`` marks its re-optimisation ticks, every 0.2 s). For the first
+    two: When no path point ahead leaves the L1 circle (the vehicle is more
     than L1 from the path, or a closed path lies wholly inside the circle) it steers at its
     projection with Park's command ``2 V^2 sin(eta) / max(|d|, L1)``, so that
     ``|a| <= 2 V^2 / L1`` holds in every case.
 ``finished``
     On an open path, when the look-ahead point would run past the path end (the end is within
     L1 of the vehicle and no point ahead leaves the L1 circle): the paper's "while the
-    look-ahead point is not the end of path". The command is then 0. A closed path never
-    finishes.
+    look-ahead point is not the end of path". With ``method="predictive"``, when the projection
+    reaches the path end (the law continues the path straight up to there). The command is
+    then 0. A closed path never finishes.
 """
 
 from __future__ import annotations
@@ -43,6 +50,7 @@ from companion.guidance.corrector import corrector_command
 from companion.guidance.l1 import l1_command
 from companion.guidance.midcourse import MidcourseGuidance
 from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
+from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
 from companion.guidance.types import GuidanceOutput, GuidanceParams, VehicleState
 
 
@@ -63,6 +71,11 @@ class TwoPhaseGuidance:
         self.path = path
         self.params = params
         self._optimiser = GainOptimiser(path, params) if params.method == "corrector" else None
+        self._predictive = None
+        if params.method == "predictive":
+            self._predictive = PredictiveGuidance(path, PredictiveParams(
+                lambda_s4=params.lambda_s4, lag_s=params.rollout_tau_s, a_max_m_s2=params.a_max_m_s2,
+                wind_x_m_s=params.wind_x_m_s, wind_y_m_s=params.wind_y_m_s))
         self._started = False
         self._midcourse: MidcourseGuidance | None = None
         self._finished = False
@@ -120,6 +133,8 @@ class TwoPhaseGuidance:
         if done:
             mc.stage = "done"
             self._s_proj = 0.0  # close range starts at the path start
+            if self._predictive is not None:
+                self._predictive.start_projection_at(0.0)
             return None
         sx, sy = self.path.start_xy_m
         # The paper takes the distance to the path start as the mid-course cross-track error.
@@ -133,6 +148,8 @@ class TwoPhaseGuidance:
         )
 
     def _close_range_step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
+        if self._predictive is not None:
+            return self._predictive_step(t_s, state)
         path, p = self.path, self.params
         x, y, course, V = state.x_m, state.y_m, state.course_rad, state.speed_m_s
         s_proj = path.project(x, y, self._s_proj)
@@ -180,6 +197,15 @@ class TwoPhaseGuidance:
                    "w2": terms.w2},
         )
 
+    def _predictive_step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
+        """The close-range phase of ``method="predictive"``: the predictive law's own step."""
+        out = self._predictive.step(t_s, state)
+        self._s_proj = out.s_proj_m
+        if out.phase == "finished":
+            self._finished = True
+            return self._finished_output(state, out.s_proj_m, out.crosstrack_m)
+        return out
+
     def _a_achieved_estimate(self, t_s: float) -> float:
         """The inner loop's acceleration now, if it lags the commands by ``rollout_tau_s``."""
         tau = self.params.rollout_tau_s
@@ -198,5 +224,7 @@ class TwoPhaseGuidance:
         if s_proj is None:
             s_proj = self.path.project(state.x_m, state.y_m, self._s_proj)
             crosstrack = self.path.crosstrack_m(state.x_m, state.y_m, s_proj)
+        predictive = self._predictive is not None  # no corrector weights: k1 = k2 = NaN
         return GuidanceOutput(a_cmd_m_s2=0.0, phase="finished", crosstrack_m=crosstrack,
-                              s_proj_m=s_proj, k1=self._k1, k2=self._k2)
+                              s_proj_m=s_proj, k1=math.nan if predictive else self._k1,
+                              k2=math.nan if predictive else self._k2)

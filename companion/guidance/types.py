@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-METHODS = ("fixed_l1", "corrector")
+METHODS = ("fixed_l1", "corrector", "predictive")
 PHASES = ("midcourse", "close_range", "finished")
 MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
 
@@ -20,7 +20,9 @@ class GuidanceParams:
 
     Attributes
     ----------
-    method : ``"fixed_l1"`` (Park 2007) or ``"corrector"`` (the paper's corrector-aided law).
+    method : ``"fixed_l1"`` (Park 2007), ``"corrector"`` (the paper's corrector-aided law) or
+        ``"predictive"`` (:mod:`companion.guidance.predictive`: pursuit plus a receding-horizon plan
+        over a model of the vehicle; the close-range phase only, mid-course is the same).
     l1_m : look-ahead distance L1 of the close-range phase.
     speed_m_s : the vehicle's constant ground speed V.
     rate_hz : guidance rate (the fixed tick).
@@ -30,8 +32,14 @@ class GuidanceParams:
     k1_max, k2_max : upper bounds of the online corrector-weight search (both >= 0).
     d_limit_factor : the re-optimisation window is ``min(d_limit_factor * L1, R_proj) / V``
         (the paper's d_limit = 2 L1).
-    rollout_tau_s : time constant of the first-order inner loop the corrector's rollouts assume
-        (0, the default, is the paper's ideal inner loop: achieved = commanded acceleration).
+    rollout_tau_s : time constant of the first-order inner loop the rollouts of ``corrector`` and
+        ``predictive`` assume (0, the default, is the paper's ideal inner loop: achieved =
+        commanded acceleration). The mock copter's is 0.3 s.
+    lambda_s4 : ``predictive`` only: weight of the squared commanded acceleration against the
+        squared cross-track error in its rollout cost (s^4), >= 0; smaller tracks tighter.
+    a_max_m_s2 : ``predictive`` only: the vehicle's lateral-acceleration limit (> 0, ``math.inf``
+        for none); every command is clipped to it and the rollouts know it.
+    wind_x_m_s, wind_y_m_s : ``predictive`` only: known steady wind (ENU) its rollouts assume.
     """
 
     method: str = "corrector"
@@ -44,6 +52,10 @@ class GuidanceParams:
     k2_max: float = 1.0e4
     d_limit_factor: float = 2.0
     rollout_tau_s: float = 0.0
+    lambda_s4: float = 0.03
+    a_max_m_s2: float = math.inf
+    wind_x_m_s: float = 0.0
+    wind_y_m_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -57,7 +69,14 @@ class GuidanceParams:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
-        for name in ("k1_max", "k2_max", "rollout_tau_s"):
+        for name in ("wind_x_m_s", "wind_y_m_s"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ValueError(f"{name}: expected a finite number, got {value!r}")
+        value = self.a_max_m_s2
+        if isinstance(value, bool) or not (isinstance(value, (int, float)) and value > 0):
+            raise ValueError(f"a_max_m_s2: expected a number > 0 (inf for no limit), got {value!r}")
+        for name in ("k1_max", "k2_max", "rollout_tau_s", "lambda_s4"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")

@@ -248,6 +248,12 @@ class _Builder:
         }
         if any(v is None for v in values.values()):
             return None  # already reported by the schema
+        if g.get("rollout_tau_s") is None or g.get("lambda_s4") is None:
+            return None  # already reported by the schema
+        values["rollout_tau_s"] = g["rollout_tau_s"]
+        values["lambda_s4"] = g["lambda_s4"]
+        # Absent: no limit. (An unusable value is None here too, but the schema reported it.)
+        values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
         try:
             return GuidanceParams(**values)
         except ValueError as err:  # the schema's ranges should make this unreachable
@@ -444,6 +450,13 @@ class _Builder:
         k = np.abs(path.k_table_1_m)
         i = int(np.argmax(k))
         k_max = float(k[i])
+        if g.method == "predictive":  # chooses its own look-ahead: only the vehicle's limit matters
+            v = g.speed_m_s
+            if v * v * k_max > g.a_max_m_s2:
+                self.warn("path", f"curvature radius {1.0 / k_max:.3g} m at s = "
+                          f"{float(path.s_table_m[i]):.1f} m needs V^2/R = {v * v * k_max:.3g} m/s^2, "
+                          f"more than guidance.a_max_m_s2 = {g.a_max_m_s2:g} m/s^2 at V = {v:g} m/s")
+            return
         if k_max > 2.0 / g.l1_m:
             r = 1.0 / k_max
             v = g.speed_m_s

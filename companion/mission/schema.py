@@ -138,7 +138,7 @@ class Tagged:
 
 FRAMES = ("local_enu", "local_ned", "geodetic")
 ON_FINISH = ("hold", "loiter", "rtl", "land")
-METHODS = ("fixed_l1", "corrector")
+METHODS = ("fixed_l1", "corrector", "predictive")
 MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
 MAX_POINTS = 10000
 
@@ -271,6 +271,18 @@ MISSION = Object(
                                     default=1.0e4),
                     "d_limit_factor": Field(_POSITIVE, "re-optimisation window: min(d_limit_factor "
                                             "* L1, R_proj) / V", default=2.0),
+                    "rollout_tau_s": Field(Number(minimum=0, maximum=5), "time constant of the "
+                                           "vehicle's inner loop (first-order lag from commanded to "
+                                           "flown lateral acceleration) assumed by the rollouts of "
+                                           "corrector and predictive; 0 = ideal (the paper)",
+                                           default=0.0),
+                    "lambda_s4": Field(Number(minimum=0, maximum=100), "predictive: weight of the "
+                                       "squared acceleration against the squared cross-track error "
+                                       "(s^4); smaller tracks tighter, larger flies smoother",
+                                       default=0.03),
+                    "a_max_m_s2": Field(Number(exclusive_minimum=0, maximum=100), "predictive: the "
+                                        "vehicle's lateral-acceleration limit; every command is "
+                                        "clipped to it (absent: no limit)"),
                 },
             ),
             "guidance tuning", default={}),
@@ -375,6 +387,8 @@ def _validate(value, spec, path, problems):
             return number
         return _validate(value, _FINITE, path, problems)
     if isinstance(spec, String):
+        if value is False and spec.enum and "off" in spec.enum:
+            value = "off"  # YAML 1.1 reads an unquoted `off` as false
         if not isinstance(value, str):
             problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
             return None

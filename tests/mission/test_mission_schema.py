@@ -45,6 +45,8 @@ def test_guidance_defaults_agree_with_guidance_params():
     assert g["k1_max"].default == defaults.k1_max
     assert g["k2_max"].default == defaults.k2_max
     assert g["d_limit_factor"].default == defaults.d_limit_factor
+    assert g["rollout_tau_s"].default == defaults.rollout_tau_s
+    assert g["lambda_s4"].default == defaults.lambda_s4
     assert m["circle_radius_m"].default == defaults.circle_radius_m
     assert m["trigger"].default == defaults.midcourse_trigger
 
@@ -53,7 +55,7 @@ def test_every_key_name_carries_its_unit_or_is_unitless_by_nature():
     unitless = {"version", "name", "frame", "origin", "path", "guidance", "midcourse", "on_finish",
                 "start", "type", "y_of_x", "x_of_s", "y_of_s", "s_range", "closed", "method",
                 "k1_max", "k2_max", "d_limit_factor", "trigger", "segments"}
-    suffixes = ("_m", "_m_s", "_deg", "_hz")
+    suffixes = ("_m", "_m_s", "_m_s2", "_deg", "_hz", "_s", "_s4")
 
     def walk(spec, where=""):
         if isinstance(spec, Tagged):

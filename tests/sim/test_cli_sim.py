@@ -45,3 +45,15 @@ def test_sim_on_a_missing_mission_fails_with_one_line_and_exit_2(tmp_path, capsy
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("companion: error:")
+
+
+def test_sim_flies_the_predictive_method_on_a_gallery_mission(capsys):
+    code = main(["sim", str(MISSIONS / "paper_sine.yaml"), "--method", "predictive", "--t-max-s", "30",
+                 "--json"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["method"] == "predictive"
+    # 30 s at 5 m/s from a 39 deg start on the sine: captured within a metre, then tracked closely.
+    assert out["d_max_m"] < 1.5 and out["phases"]["close_range"]["d_rms_m"] < 0.3
+    code = main(["sim", str(MISSIONS / "paper_sine.yaml"), "--method", "predictive", "--t-max-s", "2"])
+    assert code == 0 and "lambda 0.03 s^4" in capsys.readouterr().out
