@@ -74,6 +74,9 @@ class PredictiveParams:
     refine_iterations : Gauss-Newton refinements of the corrections per re-optimisation, >= 0
         (0: the look-ahead search alone).
     wind_x_m_s, wind_y_m_s : known steady wind, ENU, used by the rollouts.
+    curvature_ff : share, in [0, 1], of the pursuit's implied curvature at the closest point
+        replaced by the path's own curvature there (see :func:`pursuit_command`); 0 is Park's
+        pursuit as it is.
     """
 
     lambda_s4: float = 0.05
@@ -89,6 +92,7 @@ class PredictiveParams:
     refine_iterations: int = 1
     wind_x_m_s: float = 0.0
     wind_y_m_s: float = 0.0
+    curvature_ff: float = 1.0
 
     def __post_init__(self) -> None:
         def number(name: str) -> float:
@@ -97,6 +101,8 @@ class PredictiveParams:
                 raise ValueError(f"{name}: expected a number, got {value!r}")
             return float(value)
 
+        if not 0.0 <= number("curvature_ff") <= 1.0:
+            raise ValueError(f"curvature_ff: expected a number in [0, 1], got {self.curvature_ff!r}")
         for name in ("lambda_s4", "lag_s"):
             if not (math.isfinite(number(name)) and number(name) >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {getattr(self, name)!r}")
@@ -141,11 +147,13 @@ class _Window:
         if hasattr(path, "point_array"):
             x, y = path.point_array(s)
             tx, ty = path.tangent_array(s)
+            k = path.curvature_array(s)
         else:
             pts = np.array([path.point(v) for v in s], dtype=float)
             tng = np.array([path.tangent(v) for v in s], dtype=float)
             x, y, tx, ty = pts[:, 0], pts[:, 1], tng[:, 0], tng[:, 1]
-        x, y, tx, ty = (np.asarray(v, dtype=float) for v in (x, y, tx, ty))
+            k = np.array([path.curvature(v) for v in s], dtype=float)
+        x, y, tx, ty, k = (np.asarray(v, dtype=float) for v in (x, y, tx, ty, k))
         if beyond.size:
             ex, ey = (float(c) for c in path.point(total))
             etx, ety = (float(c) for c in path.tangent(total))
@@ -153,7 +161,8 @@ class _Window:
             y = np.concatenate([y, ey + beyond * ety])
             tx = np.concatenate([tx, np.full(beyond.size, etx)])
             ty = np.concatenate([ty, np.full(beyond.size, ety)])
-        self.x, self.y, self.tx, self.ty = x, y, tx, ty
+            k = np.concatenate([k, np.zeros(beyond.size)])
+        self.x, self.y, self.tx, self.ty, self.k = x, y, tx, ty, k
         self.index = np.arange(self.x.size)
 
 
@@ -180,13 +189,25 @@ def _nearest(win: _Window, x: np.ndarray, y: np.ndarray):
     return i, d, r2
 
 
-def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s2: float):
+def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s2: float,
+                    curvature_ff: float = 0.0, lead_s: float = 0.0):
     """Batched pursuit command (arrays of equal length; returns commands, L_eff, goal x, goal y,
     and the signed cross-track error at the vehicle).
 
     Park's ``2 V^2 sin(eta) / L_eff`` towards the first path sample (linearly interpolated) at
     distance ``L_eff = max(L, sqrt(2) |d|)`` ahead of the vehicle's closest sample, clipped to
     ``+-a_max``.
+
+    With ``curvature_ff`` = c > 0, the curvature the pursuit *implies* at the closest point P is
+    replaced, in proportion c, by the path's curvature there (NPFG's feed-forward):
+    ``a = pursuit - c (2 V^2 sin(eta_P) / |PG| - V^2 kappa_P)``, eta_P the angle from the tangent
+    at P to the chord from P to the goal G. ``2 V^2 sin(eta_P) / |PG|`` is the pursuit command of
+    a vehicle sitting on P along the tangent: on a circular arc it equals ``V^2 kappa`` exactly
+    (so the term vanishes there), on a straight leading into a bend it is the early turn-in that
+    makes every pursuit law cut the bend, which c = 1 removes. Off the path the feedback part
+    (pursuit minus its on-path value) is unchanged. ``kappa_P`` is read ``V lead_s`` metres
+    beyond P (the law passes its lag model's time constant): a first-order inner loop follows a
+    curvature ramp one time constant late, and leading the feed-forward by it cancels that.
     """
     v = np.maximum(speed_m_s, MIN_SPEED_M_S)
     i0, d, r2 = _nearest(win, x, y)
@@ -206,6 +227,23 @@ def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s
     eta = np.mod(los - course_rad + math.pi, 2.0 * math.pi) - math.pi
     dist = np.maximum(np.hypot(gx - x, gy - y), 1e-6)
     a = 2.0 * v * v * np.sin(eta) / dist
+    if curvature_ff:
+        # P: the vehicle projected on the tangent line of its nearest sample (continuous in the
+        # vehicle's position, unlike the sample itself); curvature interpolated to it.
+        tx, ty = win.tx[i0], win.ty[i0]
+        along = (x - win.x[i0]) * tx + (y - win.y[i0]) * ty
+        px, py = win.x[i0] + along * tx, win.y[i0] + along * ty
+        # The curvature is read ``lead_s`` ahead (V lead_s metres): a first-order inner loop of
+        # time constant tau follows a ramp of command tau late, so leading it by tau cancels that.
+        pos = i0 + (along + v * lead_s) / WINDOW_SPACING_M
+        pos = np.minimum(np.maximum(pos, 0.0), win.x.size - 1.0)
+        lo = np.minimum(pos.astype(int), win.x.size - 2) if win.x.size > 1 else np.zeros_like(i0)
+        frac_k = pos - lo
+        kappa = win.k[lo] + frac_k * (win.k[np.minimum(lo + 1, win.x.size - 1)] - win.k[lo])
+        cx, cy = gx - px, gy - py
+        chord = np.maximum(np.hypot(cx, cy), 1e-6)
+        sin_eta_p = (tx * cy - ty * cx) / chord  # cross(tangent, chord) / |chord|
+        a = a - curvature_ff * (2.0 * v * v * sin_eta_p / chord - v * v * kappa)
     if a_max_m_s2 < math.inf:
         a = np.minimum(np.maximum(a, -a_max_m_s2), a_max_m_s2)
     return a, l_eff, gx, gy, d
@@ -243,6 +281,10 @@ class PredictiveGuidance:
         self._win: _Window | None = None
         self.reoptimisations = 0
 
+    def start_projection_at(self, s_m: float) -> None:
+        """Seed the projection (e.g. at the path start when a mid-course phase hands over)."""
+        self._s_hint = float(s_m)
+
     # -- the vehicle model the law believes ---------------------------------------------------
     def _alpha(self, dt_s: float) -> float:
         tau = self.params.lag_s
@@ -279,7 +321,8 @@ class PredictiveGuidance:
         for n in range(self._steps):
             gx = v_air * np.cos(h) + wx
             gy = v_air * np.sin(h) + wy
-            u, _, _, _, d = pursuit_command(win, x, y, np.arctan2(gy, gx), np.hypot(gx, gy), look_m, math.inf)
+            u, _, _, _, d = pursuit_command(win, x, y, np.arctan2(gy, gx), np.hypot(gx, gy), look_m, math.inf,
+                                            p.curvature_ff, p.lag_s)
             u = np.minimum(np.maximum(u + plans[:, self._seg_of_step[n]], -p.a_max_m_s2), p.a_max_m_s2)
             res[:, 2 * n] = d * sq_dt
             res[:, 2 * n + 1] = u * sq_lam_dt
@@ -378,7 +421,8 @@ class PredictiveGuidance:
             reoptimised = True
         a, l_eff, gx, gy, _ = pursuit_command(
             self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
-            np.array([state.speed_m_s]), np.array([self._look_m]), math.inf)
+            np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff,
+            p.lag_s)
         seg = min(int((t_s - self._plan_t0) / self._segment_s), p.plan_segments - 1)
         correction = float(self._plan[seg])
         a_cmd = min(max(float(a[0]) + correction, -p.a_max_m_s2), p.a_max_m_s2)
