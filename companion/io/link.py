@@ -21,7 +21,8 @@ in :attr:`MavLink.rejected`: ``bad_crc``, ``bad_data`` (bad prefix, wrong length
 ``unknown`` (message id not in the dialect), ``wrong_system`` (not the paired system/component),
 ``wrong_address`` (UDP datagram not from the pinned peer), ``unsigned`` and ``bad_signature``
 (signing on), ``nan`` and ``out_of_range`` (state fields), ``old_sample`` (a LOCAL_POSITION_NED
-not newer than the one held: reordered, duplicated or replayed).
+not newer than the one held: reordered, duplicated or replayed; an earlier time is taken only as
+an autopilot reboot, after a silence and with evidence, see :meth:`MavLink._position_restart`).
 
 Signing (MAVLink 2): ``signing_key`` is 32 bytes (:func:`load_signing_key` reads a file with 64
 hex characters, or any other text as a passphrase hashed with SHA-256). When set, every outgoing
@@ -369,6 +370,7 @@ class MavLink:
         self.sent = 0
         self.stranger_addresses: set = set()
         self.restarts = 0
+        self._restarts_at_position = 0  # self.restarts when the position held was accepted
         self._peer_last_s = math.nan
         self._last_own_heartbeat_s = -math.inf
         self.on_message: Callable | None = None  # optional hook(msg) for accepted messages
@@ -502,13 +504,13 @@ class MavLink:
                 self.rejected[problem] += 1
                 return False
             prev = st.position
-            if (prev is not None and msg.time_boot_ms <= prev.time_boot_ms
-                    and now - prev.received_s < self.repin_after_s):
+            if prev is not None and msg.time_boot_ms <= prev.time_boot_ms and not self._position_restart(
+                    prev, msg.time_boot_ms, now):
                 # Not newer than the sample held (a reordered, duplicated or replayed datagram):
-                # using it would steer on old data that looks fresh. After a silence of
-                # repin_after_s an earlier time is accepted again (the autopilot restarted).
+                # using it would steer on old data that looks fresh.
                 self.rejected["old_sample"] += 1
                 return False
+            self._restarts_at_position = self.restarts
             st.position = PositionSample(msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy,
                                          msg.vz, received_s=now)
             st.positions += 1
@@ -543,6 +545,23 @@ class MavLink:
             if isinstance(tb, int) and tb >= 0:
                 self._advance_time(tb)
         return True
+
+    def _position_restart(self, prev: PositionSample, time_boot_ms: int, now: float) -> bool:
+        """Whether a position older than the one held may start a new series (autopilot reboot).
+
+        Silence alone is not enough: a stall of either process (a loaded machine) looks like
+        silence to the receiver, and a replayed old datagram read first after it would pass.
+        A reboot must also be evidenced: after at least ``repin_after_s`` without positions,
+        either another message already showed the autopilot's clock restarting
+        (:meth:`_advance_time`), or the new clock is younger than the silence itself (the
+        autopilot booted during the gap; a replay from before the gap is older than that).
+        """
+        silence_s = now - prev.received_s
+        if not silence_s >= self.repin_after_s:
+            return False
+        if self.restarts > self._restarts_at_position:
+            return True
+        return time_boot_ms / 1000.0 <= silence_s
 
     def _advance_time(self, time_boot_ms: int) -> None:
         t = time_boot_ms / 1000.0

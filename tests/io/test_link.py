@@ -273,6 +273,45 @@ def test_autopilot_reboot_restarts_its_clock(port):
     link.close(); ap.close()
 
 
+def test_an_old_position_read_first_after_a_receiver_stall_is_not_taken_for_a_reboot(port):
+    """A loaded machine stalls the companion for over a second; the first datagram it then reads
+    is an old position replayed from the autopilot's own address. Silence as the receiver saw it
+    is not evidence of a reboot: the replay (from 2 s before the held sample, older than the
+    silence is long) must be rejected, and the real stream continues."""
+    link = MavLink(f"udpin:127.0.0.1:{port}")
+    ap = FakeAutopilot(("127.0.0.1", port))
+    paired(link, ap)
+    ap.position(60_000)
+    pump(link)
+    time.sleep(1.2)  # the receiver does not poll: a stall, not a silence of the autopilot
+    ap.position(58_000)  # replayed
+    ap.position(61_220)
+    pump(link)
+    assert link.rejected["old_sample"] == 1
+    assert link.state.position.time_boot_ms == 61_220 and link.restarts == 0
+    link.close(); ap.close()
+
+
+def test_a_reboot_shown_by_another_message_lets_the_new_position_series_in(port):
+    """After a silence, a clock restart seen on another message (ATTITUDE) is the evidence: the
+    next position is accepted even though its new clock (3 s) is older than the silence (1.1 s)
+    is long."""
+    link = MavLink(f"udpin:127.0.0.1:{port}")
+    ap = FakeAutopilot(("127.0.0.1", port))
+    paired(link, ap)
+    ap.position(60_000)
+    pump(link)
+    time.sleep(1.1)
+    ap.heartbeat()
+    ap.mav.attitude_send(3_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    pump(link)
+    assert link.restarts == 1
+    ap.position(3_020)
+    pump(link)
+    assert link.state.position.time_boot_ms == 3_020 and link.rejected["old_sample"] == 0
+    link.close(); ap.close()
+
+
 @pytest.mark.parametrize("autopilot, mav_type, name, expected", [
     (12, 2, "offboard", 6 << 16),
     (12, 2, "hold", (4 << 16) | (3 << 24)),   # PX4 AUTO.LOITER
