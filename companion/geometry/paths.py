@@ -240,9 +240,10 @@ class Path:
         if s_hint is None:
             lo, hi = 0, n
         else:
-            hx, hy = self.point(s_hint)
-            window_m = PROJECT_WINDOW_FACTOR * math.hypot(x_m - hx, y_m - hy) + PROJECT_WINDOW_MIN_M
-            s_newton = self._newton_projection(x_m, y_m, s_hint, window_m)
+            # The hinted point is also Newton's first frame: evaluate it once.
+            first = self.frame(self.wrap(s_hint))
+            window_m = PROJECT_WINDOW_FACTOR * math.hypot(x_m - first[0], y_m - first[1]) + PROJECT_WINDOW_MIN_M
+            s_newton = self._newton_projection(x_m, y_m, s_hint, window_m, first)
             if s_newton is not None:
                 return s_newton
             # Newton did not settle: scan the window around the hint.
@@ -264,16 +265,18 @@ class Path:
             j = lo + int(np.argmin(dx * dx + dy * dy))
         return self._refine_projection(x_m, y_m, j)
 
-    def _newton_projection(self, x_m: float, y_m: float, s_hint: float, window_m: float) -> float | None:
+    def _newton_projection(self, x_m: float, y_m: float, s_hint: float, window_m: float,
+                           first: tuple | None = None) -> float | None:
         """Closest point by Newton from the hint: the local minimum of the distance the hint is in.
 
-        Returns None (the caller then scans the window) when Newton does not settle within a
-        few steps on a minimum inside the window, or leaves an open path's ends.
+        ``first`` is ``frame(wrap(s_hint))`` when the caller has it. Returns None (the caller
+        then scans the window) when Newton does not settle within a few steps on a minimum
+        inside the window, or leaves an open path's ends.
         """
         s = self.wrap(s_hint)
         s0 = s
-        for _ in range(6):
-            px, py, tx, ty, k = self.frame(s)
+        for it in range(6):
+            px, py, tx, ty, k = first if (it == 0 and first is not None) else self.frame(s)
             dx, dy = px - x_m, py - y_m
             g = dx * tx + dy * ty
             dg = 1.0 + k * (dx * -ty + dy * tx)
@@ -367,29 +370,47 @@ class Path:
         return self._refine_lookahead(x_m, y_m, r2, max(s_from, a * self._h), b * self._h)
 
     def _refine_lookahead(self, x_m: float, y_m: float, r2: float, a: float, b: float) -> float:
-        """Root of ``|p(s) - q|^2 = r2`` in ``[a, b]`` (inside at a, outside at b): Illinois method."""
+        """Root of ``|p(s) - q|^2 = r2`` in ``[a, b]`` (inside at a, outside at b).
+
+        Newton on ``f(s) = |p(s) - q|^2 - r2`` (``f' = 2 (p - q) . t``) from the secant of the
+        bracket, kept inside the bracket (bisection when a step leaves it). The bracket is one
+        stride, so two or three steps settle it: stops when ``|f| < 1e-10`` or the bracket is
+        narrower than 1e-9 m.
+        """
         fa = self._f_circle(a, x_m, y_m, r2)
-        fb = self._f_circle(b, x_m, y_m, r2)
         if fa > 0.0:  # the bracket's start is already outside (rounding at s_from)
             return a
-        side = 0
+        fb = self._f_circle(b, x_m, y_m, r2)
+        m = a - fa * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not (a < m < b):
+            m = 0.5 * (a + b)
+        X, Y, TX, TY, K = self._x, self._y, self._tx, self._ty, self._k
+        h = self._h
         for _ in range(60):
-            m = a - fa * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
-            if not (a < m < b):
-                m = 0.5 * (a + b)
-            fm = self._f_circle(m, x_m, y_m, r2)
-            if fm <= 0.0:
-                a, fa = m, fm
-                if side == -1:
-                    fb *= 0.5
-                side = -1
-            else:
-                b, fb = m, fm
-                if side == 1:
-                    fa *= 0.5
-                side = 1
-            if b - a < 1e-9 or abs(fm) < 1e-10:
+            i, u = self._locate(m)
+            u2 = u * u
+            u3 = u2 * u
+            h00 = 2 * u3 - 3 * u2 + 1
+            h10 = (u3 - 2 * u2 + u) * h
+            h01 = -2 * u3 + 3 * u2
+            h11 = (u3 - u2) * h
+            dx = h00 * X[i] + h10 * TX[i] + h01 * X[i + 1] + h11 * TX[i + 1] - x_m
+            dy = h00 * Y[i] + h10 * TY[i] + h01 * Y[i + 1] + h11 * TY[i + 1] - y_m
+            fm = dx * dx + dy * dy - r2
+            if abs(fm) < 1e-10:
                 return m
+            if fm <= 0.0:
+                a = m
+            else:
+                b = m
+            if b - a < 1e-9:
+                return m
+            # Derivative from the (unnormalised, |t| = 1 to ~1e-8) Hermite tangent: only steers.
+            ax = h00 * TX[i] - h10 * K[i] * TY[i] + h01 * TX[i + 1] - h11 * K[i + 1] * TY[i + 1]
+            ay = h00 * TY[i] + h10 * K[i] * TX[i] + h01 * TY[i + 1] + h11 * K[i + 1] * TX[i + 1]
+            df = 2.0 * (dx * ax + dy * ay)
+            nxt = m - fm / df if df != 0.0 else a
+            m = nxt if a < nxt < b else 0.5 * (a + b)
         return 0.5 * (a + b)
 
     def _f_circle(self, s: float, x_m: float, y_m: float, r2: float) -> float:

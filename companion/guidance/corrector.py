@@ -51,7 +51,7 @@ between them, hence the corrector-aided command obeys the same bound as constant
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -78,6 +78,18 @@ class CorrectorTerms:
     w1: float  # the paper's weights (inf/0 on a straight stretch)
     w2: float
     corrector_used: bool
+
+
+_TERM_NAMES = tuple(f.name for f in fields(CorrectorTerms))
+
+
+def _terms(*values) -> CorrectorTerms:
+    """A :class:`CorrectorTerms` from its field values in order, filled directly (the frozen
+    dataclass's ``__init__`` sets each of its fifteen fields through ``object.__setattr__``, a
+    measurable share of a 50 Hz step); the same object in every respect."""
+    terms = object.__new__(CorrectorTerms)
+    terms.__dict__.update(zip(_TERM_NAMES, values))
+    return terms
 
 
 def corrector_point(x1_m: float, y1_m: float, vx: float, vy: float,
@@ -142,8 +154,8 @@ def corrector_command(x1_m: float, y1_m: float, course_rad: float, speed_m_s: fl
     if fwd2 > 0.0:
         p4 = corrector_point(x1_m, y1_m, vx, vy, proj[0], proj[1], proj[2], proj[3], x2, y2)
     if p4 is None:
-        return CorrectorTerms(a12, a12, math.nan, eta12, None, p3, math.nan, l23, math.nan,
-                              math.nan, math.nan, radius, math.inf, 0.0, False)
+        return _terms(a12, a12, math.nan, eta12, None, p3, math.nan, l23, math.nan,
+                      math.nan, math.nan, radius, math.inf, 0.0, False)
     dx4, dy4 = p4[0] - x1_m, p4[1] - y1_m
     lat4 = vx * dy4 - vy * dx4
     l_c = math.hypot(dx4, dy4)
@@ -162,8 +174,8 @@ def corrector_command(x1_m: float, y1_m: float, course_rad: float, speed_m_s: fl
         w1, w2 = (math.inf if k1 > 0 else 0.0), 0.0
     else:
         w1, w2 = w1s * radius, w2s * radius
-    return CorrectorTerms(a, a12, a14, eta12, p4, p3, l_c, l23, l43, v_l, v_m, radius, w1, w2,
-                          w2s > 0.0 and w1s + w2s > 0.0)
+    return _terms(a, a12, a14, eta12, p4, p3, l_c, l23, l43, v_l, v_m, radius, w1, w2,
+                  w2s > 0.0 and w1s + w2s > 0.0)
 
 
 def corrector_command_array(x1_m, y1_m, course_rad, speed_m_s: float, l1_m: float,

@@ -335,5 +335,7 @@ def _pair_setpoints(events: dict[tuple[int, int], list[tuple]], rate_hz: float,
 
 def phase_name(code: float) -> str:
     """Phase name of a recorded phase code (``"unknown"`` for anything else)."""
-    names = {v: k for k, v in PHASE_CODES.items()}
-    return names.get(int(code), "unknown") if math.isfinite(code) else "unknown"
+    return _PHASE_NAMES.get(int(code), "unknown") if math.isfinite(code) else "unknown"
+
+
+_PHASE_NAMES = {v: k for k, v in PHASE_CODES.items()}
