@@ -29,6 +29,8 @@ vehicle turning at the commanded yaw rate at the commanded speed, left positive)
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import math
 import time
 from dataclasses import dataclass, field
@@ -526,6 +528,18 @@ def _tracking(cols: dict, phases: list[str]) -> dict:
 
 # ------------------------------------------------------------------------------ one call
 
+@contextlib.contextmanager
+def _collector_paused():
+    """Pause the cyclic garbage collector for the block (if it was running); resume after."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
 def replay_log(
     tlog: str | Path,
     mission: str | Path | Mission | None = None,
@@ -535,14 +549,21 @@ def replay_log(
     guidance_factory: Callable[[Mission, float], object] = default_guidance,
     config: TickConfig | None = None,
 ) -> ReplayResult:
-    """Read ``tlog``, load its mission, replay it. Raises :class:`LogError` / ``MissionError``."""
-    started = time.perf_counter()
-    flight = read_flight(tlog, on_warning=on_warning, progress=progress)
-    read_s = time.perf_counter() - started
-    if not isinstance(mission, Mission):
-        mission = load_mission(find_mission(tlog, mission))
-    result = replay_flight(flight, mission, tolerance, config=config, guidance_factory=guidance_factory,
-                           progress=progress)
+    """Read ``tlog``, load its mission, replay it. Raises :class:`LogError` / ``MissionError``.
+
+    The cyclic garbage collector is paused while the log is read and replayed: a long log keeps
+    millions of small objects alive (records, ticks, samples; none in reference cycles), and each
+    full collection would walk all of them again, about a tenth of the time of an hour's log.
+    The collector resumes (if it was running) when the call returns.
+    """
+    with _collector_paused():
+        started = time.perf_counter()
+        flight = read_flight(tlog, on_warning=on_warning, progress=progress)
+        read_s = time.perf_counter() - started
+        if not isinstance(mission, Mission):
+            mission = load_mission(find_mission(tlog, mission))
+        result = replay_flight(flight, mission, tolerance, config=config, guidance_factory=guidance_factory,
+                               progress=progress)
     result.timing_s["read_s"] = read_s
     result.timing_s["total_s"] = time.perf_counter() - started
     if result.steps_compared == 0:
