@@ -192,17 +192,18 @@ class MockAutopilot:
 
     def _service_streams(self) -> None:
         t = self.sim_t_s
-        if not self._origin_announced:
-            self._origin_announced = True
-            origin = self._build(MSG_GPS_GLOBAL_ORIGIN)
-            if origin is not None:
-                for link in self.links:
-                    link.send(origin)
         if t >= self._heartbeat_next_s:
             self._heartbeat_next_s += HEARTBEAT_INTERVAL_S
             hb = self._build(0)
             for link in self.links:
                 link.send(hb)
+        if not self._origin_announced:
+            # After the first heartbeat: a peer pairs (and pins the address) on a heartbeat.
+            self._origin_announced = True
+            origin = self._build(MSG_GPS_GLOBAL_ORIGIN)
+            if origin is not None:
+                for link in self.links:
+                    link.send(origin)
         cache: dict[int, object] = {}
         for link in self.links:
             for msgid, due in link.stream_next_s.items():
