@@ -72,6 +72,7 @@ class MockConfig:
     start_airborne: bool = False
     origin: tuple[float, float, float] | None = None
     ekf_origin: bool = True  # False: the estimator has no global origin (no GPS): no GPS_GLOBAL_ORIGIN
+    pace_lead_s: float | None = None  # wait for a setpoint client lagging more than this (simulated s)
     vehicle_params: VehicleParams = field(default_factory=VehicleParams)
     offboard_loss_s: float = 0.5
     guided_timeout_s: float = 3.0
@@ -101,6 +102,8 @@ class MockConfig:
                 raise ValueError(f"--origin: latitude/longitude out of range: {self.origin}")
         if self.signing_key is not None and len(self.signing_key) != 32:
             raise ValueError("signing key: expected 32 bytes")
+        if self.pace_lead_s is not None and not (math.isfinite(self.pace_lead_s) and self.pace_lead_s > 0):
+            raise ValueError(f"--pace-lead-s: expected a positive number, got {self.pace_lead_s}")
 
 
 class MockAutopilot:
@@ -160,6 +163,10 @@ class MockAutopilot:
         # PX4's GPS_GLOBAL_ORIGIN stream and ArduPilot's EKF both announce the origin once, when the
         # estimator sets it (here: the first physics step); afterwards only on request.
         self._origin_announced = False
+        # --pace-lead-s: the newest time_boot_ms a setpoint carried (the client's view of our
+        # clock, seconds) and the wall time it arrived.
+        self._client_time_s = -math.inf
+        self._client_wall_s = -math.inf
 
     # ------------------------------------------------------------------ time
     def _tlog_clock(self) -> float:
@@ -479,7 +486,25 @@ class MockAutopilot:
         self._ack(link, 11, result, src)
         self._flush_events()
 
+    def _note_client_time(self, time_boot_ms: int) -> None:
+        if time_boot_ms > 0:
+            self._client_time_s = max(self._client_time_s, time_boot_ms / 1000.0)
+            self._client_wall_s = time.monotonic()
+
+    def _client_lagging(self, now_wall_s: float) -> bool:
+        """--pace-lead-s: hold simulated time while a live setpoint client is that far behind.
+
+        The client stamps each setpoint with the newest ``time_boot_ms`` it has seen; a client
+        that has sent nothing for 1 s of wall time is not waited for (it stopped on purpose, or
+        the test is about its silence).
+        """
+        lead = self.config.pace_lead_s
+        if lead is None or now_wall_s - self._client_wall_s > 1.0:
+            return False
+        return self.sim_t_s - self._client_time_s > lead
+
     def _on_position_target(self, link: Link, msg, src) -> None:
+        self._note_client_time(msg.time_boot_ms)
         reason = self.flight.set_position_target(
             msg.coordinate_frame, msg.type_mask, (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz),
             (msg.afx, msg.afy, msg.afz), msg.yaw, msg.yaw_rate)
@@ -503,6 +528,7 @@ class MockAutopilot:
             self.counters.drop("bad_value")
 
     def _on_attitude_target(self, link: Link, msg, src) -> None:
+        self._note_client_time(msg.time_boot_ms)
         reason = self.flight.set_attitude_target(msg.type_mask, tuple(msg.q))
         if reason == "bad_value":
             self.counters.drop("bad_value")
@@ -623,12 +649,19 @@ class MockAutopilot:
             while not self.stop_event.is_set():
                 now = time.monotonic()
                 due = int((now - wall0) / wall_per_step) - self.steps
+                if due > 0 and self._client_lagging(now):
+                    # Simulated time waits for the client (no burst afterwards either).
+                    wall0 = now - self.steps * wall_per_step
+                    due = 0
                 if due > 4 * max_batch:
                     # Far behind (machine busy): let simulated time slip rather than burst.
                     self.overruns += 1
                     wall0 = now - (self.steps + max_batch) * wall_per_step
                     due = max_batch
                 for _ in range(min(due, max_batch)):
+                    if self._client_lagging(now):
+                        wall0 = time.monotonic() - self.steps * wall_per_step
+                        break
                     self.flight.step(dt)
                     self.steps += 1
                     self.sim_t_s = self.steps * dt

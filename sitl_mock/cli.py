@@ -49,6 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
     add("--origin", default=None, metavar="LAT,LON,ALT", help="geodetic origin of the local frame")
     add("--no-ekf-origin", action="store_true",
         help="the estimator has no global origin: GPS_GLOBAL_ORIGIN is never sent (requests get nothing)")
+    add("--pace-lead-s", type=float, default=None, metavar="S",
+        help="hold simulated time while the setpoint client's newest time_boot_ms lags by more than S "
+             "(faster-than-real-time runs on a busy machine; off by default)")
     add("--tau-vel-s", type=float, default=0.3)
     add("--tau-yaw-rate-s", type=float, default=0.3)
     add("--tau-roll-s", type=float, default=0.5, help="plane roll time constant")
@@ -92,7 +95,7 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
         autopilot=args.autopilot, vehicle=args.vehicle, links=links, sysid=args.sysid, compid=args.compid,
         speedup=args.speedup, physics_hz=args.physics_hz, seed=args.seed, start_ned_m=start_ned,
         start_alt_m=args.start_alt_m, start_yaw_deg=args.start_yaw_deg, start_airborne=args.start_airborne,
-        origin=origin, ekf_origin=not args.no_ekf_origin, vehicle_params=vehicle, offboard_loss_s=args.offboard_loss_s,
+        origin=origin, ekf_origin=not args.no_ekf_origin, pace_lead_s=args.pace_lead_s, vehicle_params=vehicle, offboard_loss_s=args.offboard_loss_s,
         guided_timeout_s=args.guided_timeout_s, signing_key=key, tlog_path=args.tlog, duration_s=args.duration_s,
         quiet=args.quiet)
 

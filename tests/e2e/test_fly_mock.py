@@ -21,6 +21,15 @@ vehicle flies in from the far start). Starting from a hover costs up to V * (V /
 overall figure must agree within 10 %. The close-range figure (sub-metre) must agree within
 0.35 m absolute, about the track shift one velocity-loop time constant of course lag produces on
 this path (V * tau * sin(0.2 rad) ~ 0.3 m).
+
+Pacing: at 5x the companion must run 250 ticks per wall second. On a loaded machine (the CI's 2
+cores shared with other jobs) it is sometimes descheduled for tens of milliseconds, which at 5x
+is several ticks of simulated flight without a new setpoint, plus coasted re-optimisations: the
+track then reflects the machine, not the guidance (a 1.2 m close-range d_rms was measured under
+two busy loops, against 0.46 m idle). The mock is therefore run with ``--pace-lead-s 0.1``: it
+holds simulated time while the newest autopilot time stamped on the companion's setpoints lags
+by more than 0.1 s (five ticks), as a machine fast enough for the run would. The tolerances are
+unchanged; the loop-rate and stale-sample checks still use the autopilot's clock.
 """
 
 from __future__ import annotations
@@ -41,6 +50,8 @@ from companion.sim.simulator import LagModel, simulate
 TAU_VEL_S = 0.3
 A_MAX_M_S2 = 10.0
 SPEEDUP = 5.0
+#: The mock holds its simulated time while the companion's setpoints lag it by more than this.
+PACE_LEAD_S = 0.1
 
 MISSION = """\
 name: e2e-short-sine
@@ -68,7 +79,8 @@ def start_mock(m, autopilot, port, extra=()):
         "--speedup", f"{SPEEDUP:g}", f"--start-ned={m.start.y_m},{m.start.x_m}",
         "--start-alt-m", "10", f"--start-yaw-deg={yaw_deg}", "--start-airborne",
         "--tau-vel-s", str(TAU_VEL_S), "--a-max-m-s2", str(A_MAX_M_S2), "--quiet",
-        "--offboard-loss-s", str(SPEEDUP), "--guided-timeout-s", str(3 * SPEEDUP), *extra,
+        "--offboard-loss-s", str(SPEEDUP), "--guided-timeout-s", str(3 * SPEEDUP),
+        "--pace-lead-s", str(PACE_LEAD_S), *extra,
     ])
     mock.start(timeout_s=60.0)
     return mock

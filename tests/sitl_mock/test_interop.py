@@ -123,6 +123,20 @@ def test_mavsdk_flies_the_ardupilot_personality_after_asking_for_streams():
     assert mock.proc.returncode == 0
 
 
+def _tlog_has_heartbeat_mode(path, custom_mode: int) -> bool:
+    """Whether a tlog being written holds an autopilot HEARTBEAT with this custom_mode."""
+    if not path.exists():
+        return False
+    log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
+    try:
+        while (msg := log.recv_match(type="HEARTBEAT")) is not None:
+            if msg.autopilot == 3 and msg.custom_mode == custom_mode:
+                return True
+        return False
+    finally:
+        log.close()
+
+
 def _mavproxy_scripts(folder) -> str:
     """Staged MAVProxy scripts; each clears the timer, does one step and schedules the next."""
     stages = [
@@ -156,8 +170,11 @@ def test_mavproxy_downloads_parameters_shows_and_switches_modes_arms_and_logs(tm
     reader.start()
     try:
         assert wait_until(lambda: any("Mode RTL" in ln for ln in lines), 45.0), "".join(lines)
-        assert wait_until(lambda: any("Received" in ln and "parameters" in ln for ln in lines), 15.0), "".join(lines)
-        time.sleep(1.5)  # MAVProxy writes its tlog from a queue: let the RTL heartbeats reach the file
+        assert wait_until(lambda: any("Received" in ln and "parameters" in ln for ln in lines), 30.0), "".join(lines)
+        # MAVProxy writes its tlog from a queue in a thread of its own, which a loaded machine
+        # delays: wait until the file holds the mock's RTL heartbeat (the last mode) rather than
+        # a fixed time, and only then stop MAVProxy.
+        assert wait_until(lambda: _tlog_has_heartbeat_mode(gcs_tlog, 6), 30.0), "RTL heartbeat never reached gcs.tlog"
     finally:
         proxy.send_signal(signal.SIGINT)
         try:
