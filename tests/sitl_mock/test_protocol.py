@@ -326,3 +326,21 @@ def test_same_seed_same_reported_track_across_runs(tmp_path):
     assert len(first) == 151  # due at 0, 1/30, ..., 150/30 = 5 s: PX4 default 30 Hz
     assert first == _recorded_positions(tmp_path, 3, "b.tlog")
     assert first != _recorded_positions(tmp_path, 4, "c.tlog")
+
+
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_gps_global_origin_is_the_origin_on_request(mock_factory, autopilot):
+    """REQUEST_MESSAGE 49 answers GPS_GLOBAL_ORIGIN = --origin (degE7, altitude AMSL in mm)."""
+    _, client = mock_factory("--autopilot", autopilot, "--speedup", "4", "--origin=-35.3632621,149.1652374,584.25")
+    assert client.wait("HEARTBEAT") is not None
+    assert client.command(M.MAV_CMD_REQUEST_MESSAGE, 49) == M.MAV_RESULT_ACCEPTED
+    msg = client.wait("GPS_GLOBAL_ORIGIN", 5.0)
+    assert msg is not None
+    assert (msg.latitude, msg.longitude, msg.altitude) == (-353632621, 1491652374, 584250)
+
+
+def test_without_an_ekf_origin_a_request_is_accepted_and_nothing_follows(mock_factory):
+    _, client = mock_factory("--autopilot", "ardupilot", "--speedup", "4", "--no-ekf-origin")
+    assert client.wait("HEARTBEAT") is not None
+    assert client.command(M.MAV_CMD_REQUEST_MESSAGE, 49) == M.MAV_RESULT_ACCEPTED
+    assert client.wait("GPS_GLOBAL_ORIGIN", 1.5) is None
