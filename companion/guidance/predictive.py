@@ -188,7 +188,9 @@ def _nearest(win: _Window, x: np.ndarray, y: np.ndarray):
     # from the tangent line minus kappa along^2 / 2 (the tangent line alone is off by up to
     # kappa spacing^2 / 8, 4 mm on a 30 m arc: the size of the differences the fronts measure).
     ex, ey = -dx[rows, i], -dy[rows, i]
-    along = win.tx[i] * ex + win.ty[i] * ey
+    # Past either end of the window (a vehicle before an open path's start) the nearest sample
+    # is the end one and ``along`` is unbounded: the correction is only meant within one spacing.
+    along = np.minimum(np.maximum(win.tx[i] * ex + win.ty[i] * ey, -WINDOW_SPACING_M), WINDOW_SPACING_M)
     d = win.tx[i] * ey - win.ty[i] * ex - 0.5 * win.k[i] * along * along
     return i, d, r2
 
