@@ -140,6 +140,9 @@ FRAMES = ("local_enu", "local_ned", "geodetic")
 ON_FINISH = ("hold", "loiter", "rtl", "land")
 METHODS = ("fixed_l1", "corrector", "predictive")
 MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
+#: The method of a mission that names none. ``GuidanceParams()`` itself keeps ``corrector`` (the
+#: paper's law) for code that builds the guidance directly, e.g. ``companion bench paper``.
+DEFAULT_METHOD = "predictive"
 MAX_POINTS = 10000
 
 _FINITE = Number()
@@ -261,7 +264,10 @@ MISSION = Object(
         "guidance": Field(
             Object(
                 fields={
-                    "method": Field(String(enum=METHODS), "guidance law", default="corrector"),
+                    "method": Field(String(enum=METHODS), "guidance law: fixed_l1 (Park), corrector "
+                                    "(the paper's law) or predictive (ours; the default, ahead of "
+                                    "the others under an inner-loop lag, docs/benchmarks.md)",
+                                    default=DEFAULT_METHOD),
                     "l1_m": Field(_POSITIVE, "look-ahead distance L1", default=10.0),
                     "rate_hz": Field(Number(exclusive_minimum=0, maximum=1000), "guidance rate",
                                      default=50.0),

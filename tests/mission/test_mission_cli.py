@@ -20,7 +20,7 @@ TIGHT = """\
 name: tight
 speed_m_s: 6
 path: {type: parametric, x_of_s: "3*cos(s)", y_of_s: "3*sin(s)", s_range: [0, 2*pi], closed: true}
-guidance: {l1_m: 12}
+guidance: {method: fixed_l1, l1_m: 12}
 """
 
 

@@ -60,3 +60,21 @@ def test_a_bend_beyond_the_vehicle_limit_warns_for_predictive():
     assert any("a_max_m_s2 = 5" in w for w in tight.warnings)
     loose = parse_mission(text + "guidance: {method: predictive, a_max_m_s2: 8}\n", "m.yaml")
     assert not any("a_max_m_s2" in w for w in loose.warnings)
+
+
+def test_a_mission_naming_no_method_flies_predictive():
+    assert load("").guidance.method == "predictive"
+    assert load("guidance: {l1_m: 12}").guidance.method == "predictive"
+
+
+@pytest.mark.parametrize("name", ["paper_sine.yaml", "paper_far_start.yaml"])
+def test_the_papers_scenario_missions_name_the_corrector_explicitly(name):
+    from pathlib import Path
+
+    import yaml
+
+    from companion.mission import load_mission
+
+    path = Path(__file__).resolve().parents[2] / "missions" / name
+    assert yaml.safe_load(path.read_text())["guidance"]["method"] == "corrector"
+    assert load_mission(path).guidance.method == "corrector"

@@ -39,7 +39,9 @@ def test_guidance_defaults_agree_with_guidance_params():
     g = MISSION.fields["guidance"].spec.fields
     m = MISSION.fields["midcourse"].spec.fields
     defaults = GuidanceParams()
-    assert g["method"].default == defaults.method
+    # One documented exception: a mission that names no method flies predictive, while
+    # GuidanceParams() keeps the paper's corrector for code that builds the guidance itself.
+    assert g["method"].default == "predictive" and defaults.method == "corrector"
     assert g["l1_m"].default == defaults.l1_m
     assert g["rate_hz"].default == defaults.rate_hz
     assert g["k1_max"].default == defaults.k1_max
@@ -100,4 +102,4 @@ def test_typo_inside_a_segment_names_its_index():
 def test_defaults_fill_in_an_issue_two_mission():
     m = parse_mission("name: d\nspeed_m_s: 3\npath: {type: waypoints, points_m: [[0, 0], [40, 0]]}\n")
     assert (m.altitude_m, m.on_finish, m.frame, m.start, m.origin) == (10.0, "hold", "local_enu", None, None)
-    assert m.guidance == GuidanceParams(speed_m_s=3.0)
+    assert m.guidance == GuidanceParams(speed_m_s=3.0, method="predictive")
