@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.guidance.baselines._frame import is_finished, path_frame
-from companion.guidance.types import GuidanceOutput, VehicleState
+from companion.guidance.types import SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)
 WINDOW_SPACING_M = 1.0  # spacing of the local path samples the rollouts project onto
@@ -423,7 +423,7 @@ class PredictiveGuidance:
         reoptimised = False
         if t_s >= self._next_reopt_t or self._win is None:
             self.reoptimise(t_s, state, f.s_m, f.crosstrack_m)
-            self._next_reopt_t = t_s + p.reopt_period_s - 1e-9
+            self._next_reopt_t = t_s + p.reopt_period_s - SCHEDULE_TOLERANCE_S
             reoptimised = True
         a, l_eff, gx, gy, _ = pursuit_command(
             self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),

@@ -51,7 +51,7 @@ from companion.guidance.l1 import l1_command
 from companion.guidance.midcourse import MidcourseGuidance
 from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
 from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
-from companion.guidance.types import GuidanceOutput, GuidanceParams, VehicleState
+from companion.guidance.types import SCHEDULE_TOLERANCE_S, GuidanceOutput, GuidanceParams, VehicleState
 
 
 # Below this ground speed the rollouts are meaningless (hovering, taking off): gains are kept.
@@ -185,7 +185,7 @@ class TwoPhaseGuidance:
             k1, k2, window = self._optimiser.optimise(x, y, course, V, s_proj, s_look, warm,
                                                       self._a_achieved_estimate(t_s))
             self._k1, self._k2 = k1, k2
-            self._t_next_opt = t_s + window
+            self._t_next_opt = t_s + window - SCHEDULE_TOLERANCE_S
             reoptimised = True
         terms = corrector_command(x, y, course, V, p.l1_m, (px, py, tx, ty),
                                   (lx, ly, ltx, lty, lk), self._k1, self._k2)

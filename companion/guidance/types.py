@@ -13,6 +13,12 @@ METHODS = ("fixed_l1", "corrector", "predictive")
 PHASES = ("midcourse", "close_range", "finished")
 MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
 
+#: Re-optimisations fall due this much before their scheduled time. Tick times often sit on an
+#: exact millisecond grid (an autopilot's clock), so ``t >= t_last + window`` is frequently an
+#: equality that float rounding decides; a tick time restored from a log (exact to ~1e-13 s, see
+#: docs/recording.md) must fall on the same side as in flight. 1 ns is far below any tick.
+SCHEDULE_TOLERANCE_S = 1e-9
+
 
 @dataclass(frozen=True)
 class GuidanceParams:
