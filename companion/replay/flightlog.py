@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Callable
 
 from companion.errors import LogError
+from companion.io.link import GlobalOrigin
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
 from companion.loop.tick import DEBUG_FIELDS, PHASE_CODES
@@ -42,6 +43,7 @@ ID_DFA = MSG_ID["DEBUG_FLOAT_ARRAY"]
 ID_ATTITUDE = MSG_ID["ATTITUDE"]
 ID_SAT = MSG_ID["SET_ATTITUDE_TARGET"]
 ID_HEARTBEAT = MSG_ID["HEARTBEAT"]
+ID_GPS_GLOBAL_ORIGIN = MSG_ID["GPS_GLOBAL_ORIGIN"]
 MAV_AUTOPILOT_INVALID = 8
 PROGRESS_EVERY_RECORDS = 4096
 #: A guidance row and the setpoint after it are one tick's when less than this many periods apart
@@ -123,6 +125,9 @@ class LoggedFlight:
     warnings: list[LogWarning] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     records: int = 0
+    # The commanded autopilot's GPS_GLOBAL_ORIGIN (its local frame's origin), if the log holds one:
+    # a geodetic mission is placed in the flight's frame about it, as the runner did in flight.
+    origin: GlobalOrigin | None = None
 
 
 def _setpoint(msg) -> LoggedSetpoint:
@@ -164,11 +169,12 @@ def read_flight(
     Raises :class:`LogError` when the file has no setpoints to compare (or cannot be read).
     """
     path = Path(path)
-    wanted = {ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT, ID_HEARTBEAT}
+    wanted = {ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT, ID_HEARTBEAT, ID_GPS_GLOBAL_ORIGIN}
     reader = TlogReader(path, decode_ids=wanted, on_warning=on_warning, light=True)
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
     newest_yaw: dict[int, float] = {}
+    origins: dict[int, GlobalOrigin] = {}  # system -> newest GPS_GLOBAL_ORIGIN (autopilots only)
     # per sender, in file order: (tlog time, LoggedSetpoint / LoggedAttitude / LoggedTick,
     # (tlog time, newest sample of the target) for setpoints)
     events: dict[tuple[int, int], list[tuple]] = {}
@@ -197,6 +203,10 @@ def read_flight(
                 if sample is not None:
                     samples_by_ms.setdefault(rec.src_system, {})[sample.time_boot_ms] = sample
                     newest_sample[rec.src_system] = (rec.time_s, sample)
+            elif mid == ID_GPS_GLOBAL_ORIGIN and (rec.src_system, rec.src_component) not in not_autopilots:
+                lat, lon, alt = msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3
+                if -90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and abs(alt) < 1.0e5:
+                    origins[rec.src_system] = GlobalOrigin(lat, lon, alt, received_s=rec.time_s)
             elif mid == ID_ATTITUDE and (rec.src_system, rec.src_component) not in not_autopilots:
                 if math.isfinite(msg.yaw):
                     newest_yaw[rec.src_system] = msg.yaw
@@ -274,8 +284,13 @@ def read_flight(
     else:
         raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED paired with a LOCAL_POSITION_NED; "
                        "nothing to replay")
+    # The commanded autopilot: the target of the setpoints (the most common), else the only one.
+    targets = list(last_target.values())
+    commanded = max(set(targets), key=targets.count) if targets else None
+    origin = origins.get(commanded) if commanded in origins else (
+        next(iter(origins.values())) if len(origins) == 1 else None)
     return LoggedFlight(path, kind, ticks, coasts if kind == "companion" else [], list(reader.warnings),
-                        notes, reader.records)
+                        notes, reader.records, origin)
 
 
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:

@@ -199,6 +199,23 @@ def default_guidance(mission: Mission, rate_hz: float):
     return make_guidance(mission, rate_hz)
 
 
+def in_flight_frame(flight: LoggedFlight, mission: Mission) -> Mission:
+    """The mission in the logged flight's local frame.
+
+    A geodetic mission is flown translated onto the autopilot's EKF origin (see
+    :func:`companion.loop.runner.onto_autopilot_origin`); replay applies the same translation from
+    the GPS_GLOBAL_ORIGIN recorded in the log. Local-frame missions are returned unchanged.
+    """
+    if mission.frame != "geodetic":
+        return mission
+    if flight.origin is None:
+        raise LogError(f"{flight.path}: the mission is geodetic but the log holds no GPS_GLOBAL_ORIGIN "
+                       "from the autopilot; cannot place the path in the flight's local frame")
+    from companion.loop.runner import onto_autopilot_origin
+
+    return onto_autopilot_origin(mission, flight.origin)[0]
+
+
 def flight_rate_hz(flight: LoggedFlight, mission: Mission) -> float:
     """The loop rate the flight ran at: from the recorded tick times (median spacing, rounded to
     a whole number of hertz when within 1 %), else the mission's ``guidance.rate_hz``."""
@@ -244,6 +261,7 @@ def replay_flight(
     ``guidance_factory(mission, rate_hz)`` builds the guidance (default: the live runner's).
     """
     started = time.perf_counter()
+    mission = in_flight_frame(flight, mission)
     rate_hz = config.rate_hz if config is not None else flight_rate_hz(flight, mission)
     if config is None and flight.kind == "companion":
         config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight))

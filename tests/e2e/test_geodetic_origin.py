@@ -102,11 +102,16 @@ def distance_to_polyline_m(px, py, xs, ys):
     return np.array(out)
 
 
-def test_a_geodetic_mission_is_flown_on_the_autopilots_origin(tmp_path):
-    m = geodetic_mission()
+@pytest.fixture(scope="module")
+def geodetic_flight(tmp_path_factory):
     # Start 3 m south of the path's first point as the autopilot sees it (mission (0, 0) is at
     # ENU (40, 25) in the mock's frame): north 22, east 40. Unshifted, that start would be 47 m away.
-    runner = fly(m, tmp_path, start_ned=(NORTH_M - 3.0, EAST_M))
+    tmp_path = tmp_path_factory.mktemp("geodetic")
+    return fly(geodetic_mission(), tmp_path, start_ned=(NORTH_M - 3.0, EAST_M)), tmp_path / "flight.tlog"
+
+
+def test_a_geodetic_mission_is_flown_on_the_autopilots_origin(geodetic_flight):
+    runner, _ = geodetic_flight
     s = runner.summary
     assert s["exit"] == "finished", runner.events
     east, north = s["origin_offset_enu_m"]
@@ -132,6 +137,39 @@ def test_a_geodetic_mission_is_flown_on_the_autopilots_origin(tmp_path):
     # ... and not on the path read in the mock's own frame (the bug this guards against).
     off_path = distance_to_polyline_m(px, py, xs, ys)
     assert float(np.min(off_path)) > 15.0
+
+
+def test_the_geodetic_flight_replays_within_tolerance_on_the_recorded_origin(geodetic_flight):
+    """Replay places the geodetic mission with the GPS_GLOBAL_ORIGIN recorded in the tlog."""
+    from companion.replay.replay import replay_log
+
+    _, tlog = geodetic_flight
+    result = replay_log(tlog, progress=False)  # the mission recorded beside the log
+    assert result.within_tolerance, result.first_divergence
+    assert result.steps_compared > 500
+    # The path replay used starts where the flight flew it: the mission's (0, 0) moved by the
+    # independently computed offset.
+    x0, y0 = result.mission_path.start_xy_m
+    assert x0 == pytest.approx(EAST_M, abs=0.005) and y0 == pytest.approx(NORTH_M, abs=0.005)
+
+
+def test_a_geodetic_log_without_the_autopilots_origin_cannot_be_replayed(geodetic_flight, tmp_path):
+    from companion.errors import LogError
+    from companion.io.logread import TlogReader
+    from companion.replay.replay import replay_log
+
+    _, tlog = geodetic_flight
+    # Copy the log without its GPS_GLOBAL_ORIGIN records (id 49): the flight's frame is unknown.
+    stripped = tmp_path / "stripped.tlog"
+    data = tlog.read_bytes()
+    records = list(TlogReader(tlog))
+    ends = [r.offset for r in records[1:]] + [len(data)]  # an undamaged log: records are contiguous
+    kept = [data[r.offset:end] for r, end in zip(records, ends) if r.msg_id != 49]
+    assert len(kept) < len(records)
+    stripped.write_bytes(b"".join(kept))
+    (tmp_path / "stripped.tlog.mission.yaml").write_text(geodetic_mission().source_text, encoding="utf-8")
+    with pytest.raises(LogError, match="GPS_GLOBAL_ORIGIN"):
+        replay_log(stripped, progress=False)
 
 
 def test_a_geodetic_mission_without_an_autopilot_origin_is_refused(tmp_path):
