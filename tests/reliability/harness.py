@@ -10,7 +10,6 @@ import json
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -18,6 +17,8 @@ import time
 from pathlib import Path
 
 from pymavlink import mavutil
+
+from companion.cli.demo import free_udp_port
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -43,13 +44,6 @@ MSG_LOCAL_POSITION_NED = 32
 MSG_SET_POSITION_TARGET_LOCAL_NED = 84
 PHASE_HOLD = 3
 
-
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def write_mission(directory: Path, text: str = LINE_MISSION, name: str = "line.yaml") -> Path:

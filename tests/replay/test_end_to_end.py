@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import shutil
 import signal
-import socket
 import struct
 import subprocess
 import sys
@@ -16,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from companion.cli.main import main
+from companion.cli.demo import free_udp_port
 from replay_tlogtools import iter_frames, refresh_crc
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -37,13 +37,6 @@ FLIGHT_S = 5.0
 SPT_YAW_RATE_OFFSET = 10 + 4 + 10 * 4  # header, time_boot_ms, x .. yaw
 DFA_DATA_OFFSET = 10 + 8 + 2 + 10  # header, time_usec, array_id, name (data is an extension field)
 
-
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def start_mock(port: int, autopilot: str, *extra: str, duration_s: float = 60.0) -> subprocess.Popen:
