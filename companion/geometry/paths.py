@@ -431,33 +431,13 @@ class Path:
 
     def point_array(self, s_m) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`point`: arrays ``x_m, y_m`` for an array of arc lengths."""
-        i, u = self._locate_array(s_m)
-        h = self._h
-        u2 = u * u
-        u3 = u2 * u
-        h00 = 2 * u3 - 3 * u2 + 1
-        h10 = (u3 - 2 * u2 + u) * h
-        h01 = -2 * u3 + 3 * u2
-        h11 = (u3 - u2) * h
-        X, Y, TX, TY = self.x_table_m, self.y_table_m, self.tx_table, self.ty_table
-        return (h00 * X[i] + h10 * TX[i] + h01 * X[i + 1] + h11 * TX[i + 1],
-                h00 * Y[i] + h10 * TY[i] + h01 * Y[i + 1] + h11 * TY[i + 1])
+        x, y, _, _, _ = self.frame_array(s_m)
+        return x, y
 
     def tangent_array(self, s_m) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`tangent`."""
-        i, u = self._locate_array(s_m)
-        h = self._h
-        u2 = u * u
-        u3 = u2 * u
-        h00 = 2 * u3 - 3 * u2 + 1
-        h10 = (u3 - 2 * u2 + u) * h
-        h01 = -2 * u3 + 3 * u2
-        h11 = (u3 - u2) * h
-        TX, TY, K = self.tx_table, self.ty_table, self.k_table_1_m
-        ax = h00 * TX[i] - h10 * K[i] * TY[i] + h01 * TX[i + 1] - h11 * K[i + 1] * TY[i + 1]
-        ay = h00 * TY[i] + h10 * K[i] * TX[i] + h01 * TY[i + 1] + h11 * K[i + 1] * TX[i + 1]
-        norm = np.hypot(ax, ay)
-        return ax / norm, ay / norm
+        _, _, tx, ty, _ = self.frame_array(s_m)
+        return tx, ty
 
     def frame_array(self, s_m) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Vectorised :meth:`frame`: arrays ``(x_m, y_m, tx, ty, curvature_1_m)``.
@@ -480,9 +460,7 @@ class Path:
 
     def curvature_array(self, s_m) -> np.ndarray:
         """Vectorised :meth:`curvature`."""
-        i, u = self._locate_array(s_m)
-        K = self.k_table_1_m
-        return K[i] + u * (K[i + 1] - K[i])
+        return self.frame_array(s_m)[4]
 
     def sample(self, n: int = 500) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``n`` evenly spaced points for plotting: arrays ``(s_m, x_m, y_m)``."""

@@ -144,16 +144,13 @@ class _Window:
             beyond = s[s > total] - total  # continued straight along the end tangent
             s = s[s <= total]
             s = np.clip(s, 0.0, total)
-        if hasattr(path, "point_array"):
-            x, y = path.point_array(s)
-            tx, ty = path.tangent_array(s)
-            k = path.curvature_array(s)
-        else:
+        if hasattr(path, "frame_array"):
+            x, y, tx, ty, k = path.frame_array(s)
+        else:  # any object with the scalar Path queries (e.g. an exact circle in the tests)
             pts = np.array([path.point(v) for v in s], dtype=float)
             tng = np.array([path.tangent(v) for v in s], dtype=float)
             x, y, tx, ty = pts[:, 0], pts[:, 1], tng[:, 0], tng[:, 1]
             k = np.array([path.curvature(v) for v in s], dtype=float)
-        x, y, tx, ty, k = (np.asarray(v, dtype=float) for v in (x, y, tx, ty, k))
         if beyond.size:
             ex, ey = (float(c) for c in path.point(total))
             etx, ety = (float(c) for c in path.tangent(total))
