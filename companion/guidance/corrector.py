@@ -211,7 +211,7 @@ def corrector_command_vxy(x1_m, y1_m, vx, vy, speed_m_s: float, l1_m: float,
     lat4 = vx * dy4 - vy * dx4
     lc2 = np.maximum(dx4 * dx4 + dy4 * dy4, 1e-18)
     a_max = two_v2 / l1_m
-    a14 = np.clip(two_v2 * lat4 / lc2, -a_max, a_max)
+    a14 = np.minimum(np.maximum(two_v2 * lat4 / lc2, -a_max), a_max)  # np.clip, cheaper on tiny arrays
     num = V * fwd2
     den = dx2 * t2x + dy2 * t2y
     cap = V_L_MAX_FACTOR * V

@@ -38,7 +38,7 @@ from companion.guidance.types import GuidanceParams
 RHO_LOG10_RANGE = (-1.0, 7.0)
 RHO_COARSE_COUNT = 17  # log-spaced ratios in the first batch (half a decade apart)
 WARM_OFFSETS = (-0.5, -0.25, 0.0, 0.25, 0.5)  # around the previous optimum, in grid steps
-ROLLOUT_MAX_STEPS = 40
+ROLLOUT_MAX_STEPS = 20
 
 
 def gains_from_ratio(rho: float, k1_max: float, k2_max: float) -> tuple[float, float]:
@@ -141,16 +141,20 @@ class GainOptimiser:
         # cos and sin of the course: the unicycle step below yields the next ones, so each step
         # costs one cos and one sin for the whole batch.
         c_psi, s_psi = np.cos(psi), np.sin(psi)
-        px, py, tx, ty, k = frame(s_p)
+        # The projection's frame at the end of a step and the look-ahead's starting frame of the
+        # next one are independent: one frame_array call on both halves of a 2m-array serves
+        # both (it is elementwise, so each half is what its own call would give).
+        s_l = np.maximum(s_l + vdt, s_p)
+        both = frame(np.concatenate((s_p, s_l)))
         for _ in range(n_steps):
+            px, py, tx, ty, k = (v[:m] for v in both)
+            lx, ly, ltx, lty = (v[m:] for v in both[:4])
             # Look-ahead: Newton on |p(s) - q|^2 = L1^2 from the previous one, kept ahead of
-            # the projection; one step per tick is enough as it moves ~V dt between ticks.
-            s_l = np.maximum(s_l + vdt, s_p)
-            lx, ly, ltx, lty, lk = frame(s_l)
+            # the projection; one step per rollout step is enough as it moves ~V dt between them.
             ex, ey = lx - x, ly - y
             f = ex * ex + ey * ey - l1sq
             df = np.maximum(2.0 * (ex * ltx + ey * lty), 0.5 * l1)
-            s_l = np.minimum(np.maximum(s_l - np.clip(f / df, -2.0, 2.0), s_p), s_max)
+            s_l = np.minimum(np.maximum(s_l - np.minimum(np.maximum(f / df, -2.0), 2.0), s_p), s_max)
             lx, ly, ltx, lty, lk = frame(s_l)
             a = corrector_command_vxy(x, y, c_psi, s_psi, V, l1, px, py, tx, ty, lx, ly, ltx, lty, lk, k1, k2)
             if tau > 0:
@@ -172,7 +176,8 @@ class GainOptimiser:
             g = dx * tx + dy * ty
             dg = np.maximum(1.0 + k * (dy * tx - dx * ty), 0.2)
             s_p = np.minimum(np.maximum(s_p - g / dg, 0.0), s_max)
-            px, py, tx, ty, k = frame(s_p)
-            ex, ey = px - x, py - y
+            s_l = np.maximum(s_l + vdt, s_p)
+            both = frame(np.concatenate((s_p, s_l)))
+            ex, ey = both[0][:m] - x, both[1][:m] - y
             sq_sum += ex * ex + ey * ey
         return sq_sum / n_steps
