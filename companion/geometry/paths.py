@@ -112,6 +112,10 @@ class Path:
         # multiply-adds instead of some forty array operations.
         self._coef = _hermite_coefficients(self.x_table_m, self.y_table_m, self.tx_table,
                                            self.ty_table, self.k_table_1_m, self._h)
+        # The last two frames evaluated, as (s, frame, s, frame): a tick asks for the frames of the
+        # projection and of the look-ahead point, which the searches that found them have just
+        # evaluated, and the next tick starts its searches from the same two points.
+        self._memo = (math.nan, None, math.nan, None)
         self.start_xy_m = (self._x[0], self._y[0])
         self.start_heading_rad = math.atan2(self._ty[0], self._tx[0])
         self.end_xy_m = (self._x[-1], self._y[-1])
@@ -192,7 +196,15 @@ class Path:
         return math.atan2(ty, tx)
 
     def frame(self, s_m: float) -> tuple[float, float, float, float, float]:
-        """``(x_m, y_m, tx, ty, curvature_1_m)`` at ``s_m`` in one call (saves work on the hot path)."""
+        """``(x_m, y_m, tx, ty, curvature_1_m)`` at ``s_m`` in one call (saves work on the hot path).
+
+        The last two frames are remembered: asking again for either costs a comparison.
+        """
+        memo = self._memo
+        if s_m == memo[0]:
+            return memo[1]
+        if s_m == memo[2]:
+            return memo[3]
         i, u = self._locate(s_m)
         h = self._h
         u2 = u * u
@@ -207,7 +219,9 @@ class Path:
         ax = h00 * tx[i] - h10 * k[i] * ty[i] + h01 * tx[i + 1] - h11 * k[i + 1] * ty[i + 1]
         ay = h00 * ty[i] + h10 * k[i] * tx[i] + h01 * ty[i + 1] + h11 * k[i + 1] * tx[i + 1]
         norm = math.hypot(ax, ay)
-        return px, py, ax / norm, ay / norm, k[i] + u * (k[i + 1] - k[i])
+        result = (px, py, ax / norm, ay / norm, k[i] + u * (k[i + 1] - k[i]))
+        self._memo = (s_m, result, memo[0], memo[1])
+        return result
 
     def crosstrack_m(self, x_m: float, y_m: float, s_m: float) -> float:
         """Signed distance of ``(x_m, y_m)`` from the path point at ``s_m``: positive left of the path.
@@ -283,11 +297,13 @@ class Path:
             if dg <= 0.05:
                 return None
             step = g / dg
+            if abs(step) < 1e-7:
+                # Settled: the point just evaluated is within 1e-7 m of the root (the distance
+                # to the path is then exact to ~1e-14 m), and its frame is remembered.
+                return self.wrap(s)
             s -= step
             if abs(s - s0) > window_m or (not self.closed and not 0.0 <= s <= self.length_m):
                 return None
-            if abs(step) < 1e-7:
-                return self.wrap(s)
         return None
 
     def _refine_projection(self, x_m: float, y_m: float, j: int) -> float:
@@ -348,7 +364,7 @@ class Path:
         closed = self.closed
         # Coarse march: first node pair (a, b) with a inside the circle and b outside.
         a = j0
-        px, py = self.point(s_from)
+        px, py = self.frame(s_from)[:2]  # s_from is usually the projection: remembered
         d2_from = (px - x_m) ** 2 + (py - y_m) ** 2
         a_inside = d2_from <= r2  # at s_from itself
         if a_inside:
@@ -367,35 +383,34 @@ class Path:
             a, a_inside = b, b_inside
         else:
             return None
-        return self._refine_lookahead(x_m, y_m, r2, max(s_from, a * self._h), b * self._h)
+        # f = |p - q|^2 - r2 at the bracket's ends, from what the march already has.
+        if a * self._h > s_from:
+            ja = a % n if closed else a
+            fa = (X[ja] - x_m) ** 2 + (Y[ja] - y_m) ** 2 - r2
+            s_a = a * self._h
+        else:
+            fa, s_a = d2_from - r2, s_from
+        return self._refine_lookahead(x_m, y_m, r2, s_a, b * self._h, fa, dx * dx + dy * dy - r2)
 
-    def _refine_lookahead(self, x_m: float, y_m: float, r2: float, a: float, b: float) -> float:
-        """Root of ``|p(s) - q|^2 = r2`` in ``[a, b]`` (inside at a, outside at b).
+    def _refine_lookahead(self, x_m: float, y_m: float, r2: float, a: float, b: float,
+                          fa: float, fb: float) -> float:
+        """Root of ``f(s) = |p(s) - q|^2 - r2`` in ``[a, b]`` (inside at a, outside at b), given
+        ``fa = f(a)`` and ``fb = f(b)``.
 
-        Newton on ``f(s) = |p(s) - q|^2 - r2`` (``f' = 2 (p - q) . t``) from the secant of the
-        bracket, kept inside the bracket (bisection when a step leaves it). The bracket is one
-        stride, so two or three steps settle it: stops when ``|f| < 1e-10`` or the bracket is
-        narrower than 1e-9 m.
+        Newton (``f' = 2 (p - q) . t``) from the secant of the bracket, kept inside the bracket
+        (bisection when a step leaves it). The bracket is one stride, so two or three steps
+        settle it: stops when ``|f| < 1e-10`` or the bracket is narrower than 1e-9 m, and
+        returns the last point evaluated (whose frame is then remembered).
         """
-        fa = self._f_circle(a, x_m, y_m, r2)
         if fa > 0.0:  # the bracket's start is already outside (rounding at s_from)
             return a
-        fb = self._f_circle(b, x_m, y_m, r2)
         m = a - fa * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
         if not (a < m < b):
             m = 0.5 * (a + b)
-        X, Y, TX, TY, K = self._x, self._y, self._tx, self._ty, self._k
-        h = self._h
+        frame = self.frame
         for _ in range(60):
-            i, u = self._locate(m)
-            u2 = u * u
-            u3 = u2 * u
-            h00 = 2 * u3 - 3 * u2 + 1
-            h10 = (u3 - 2 * u2 + u) * h
-            h01 = -2 * u3 + 3 * u2
-            h11 = (u3 - u2) * h
-            dx = h00 * X[i] + h10 * TX[i] + h01 * X[i + 1] + h11 * TX[i + 1] - x_m
-            dy = h00 * Y[i] + h10 * TY[i] + h01 * Y[i + 1] + h11 * TY[i + 1] - y_m
+            px, py, tx, ty, _ = frame(m)
+            dx, dy = px - x_m, py - y_m
             fm = dx * dx + dy * dy - r2
             if abs(fm) < 1e-10:
                 return m
@@ -405,18 +420,10 @@ class Path:
                 b = m
             if b - a < 1e-9:
                 return m
-            # Derivative from the (unnormalised, |t| = 1 to ~1e-8) Hermite tangent: only steers.
-            ax = h00 * TX[i] - h10 * K[i] * TY[i] + h01 * TX[i + 1] - h11 * K[i + 1] * TY[i + 1]
-            ay = h00 * TY[i] + h10 * K[i] * TX[i] + h01 * TY[i + 1] + h11 * K[i + 1] * TX[i + 1]
-            df = 2.0 * (dx * ax + dy * ay)
+            df = 2.0 * (dx * tx + dy * ty)
             nxt = m - fm / df if df != 0.0 else a
             m = nxt if a < nxt < b else 0.5 * (a + b)
         return 0.5 * (a + b)
-
-    def _f_circle(self, s: float, x_m: float, y_m: float, r2: float) -> float:
-        px, py = self.point(s)
-        dx, dy = px - x_m, py - y_m
-        return dx * dx + dy * dy - r2
 
     # ------------------------------------------------------------------ vectorised queries
     def _locate_array(self, s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

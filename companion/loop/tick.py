@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 from companion.geometry import frames
 from companion.guidance.types import GuidanceOutput, VehicleState
@@ -115,7 +116,11 @@ class TickConfig:
 
 @dataclass(frozen=True)
 class TickResult:
-    """What one tick decided."""
+    """What one tick decided.
+
+    ``debug`` is the tick's ``DEBUG_FIELDS`` row, built on first use (the flight loop records
+    it; replay, which only compares setpoints, never pays for it).
+    """
 
     tick: int
     t_s: float
@@ -128,7 +133,8 @@ class TickResult:
     sample_age_s: float
     course_rad: float  # the course used (carry it into the next tick as ``prev_course_rad``)
     course_cmd_rad: float = math.nan  # commanded course (carry as ``prev_course_cmd_rad``)
-    debug: list = field(default_factory=list)
+    prev_course_cmd_rad: float = math.nan  # the inputs carried from the previous tick (NaN: none)
+    prev_course_rad: float = math.nan
 
     @property
     def phase_code(self) -> int:
@@ -137,6 +143,10 @@ class TickResult:
     @property
     def is_hold(self) -> bool:
         return self.phase == "hold"
+
+    @cached_property
+    def debug(self) -> list[float]:
+        return debug_row(self)
 
 
 def course_from_sample(sample: PositionSample, yaw_ned_rad: float | None, prev_course_rad: float,
@@ -177,7 +187,6 @@ def compute_tick(
         None/NaN to start from the measured course.
     """
     alt_m = -sample.z_ned_m if sample is not None else math.nan
-    ground_speed = math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) if sample is not None else math.nan
     hold_reason = ""
     if sample is None:
         hold_reason = "no_position"
@@ -213,11 +222,9 @@ def compute_tick(
                                          config.altitude_hold)
             course_cmd = setpoint.course_cmd_enu_rad
 
-    result = TickResult(tick, t_s, phase, hold_reason, state, output, setpoint, sample,
-                        sample_age_s, course, course_cmd)
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
-    object.__setattr__(result, "debug", debug_row(result, ground_speed, alt_m, prev_cmd, prev_course_rad))
-    return result
+    return TickResult(tick, t_s, phase, hold_reason, state, output, setpoint, sample,
+                      sample_age_s, course, course_cmd, prev_cmd, prev_course_rad)
 
 
 def hold_for(config: TickConfig, alt_m: float, have_sample: bool,
@@ -258,12 +265,17 @@ def _float32(x: float) -> float:
     return struct.unpack("<f", struct.pack("<f", x))[0] if math.isfinite(x) else x
 
 
-def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float,
-              prev_course_cmd_rad: float = math.nan, prev_course_rad: float = math.nan) -> list[float]:
+def debug_row(result: TickResult) -> list[float]:
     """The ``DEBUG_FIELDS`` row of a tick (NaN where a field does not apply)."""
     nan = math.nan
     out = result.output
     sp = result.setpoint
+    sample = result.sample
+    if sample is not None:
+        ground_speed_m_s = math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s)
+        alt_m = -sample.z_ned_m
+    else:
+        ground_speed_m_s = alt_m = nan
     if isinstance(sp, VelocitySetpoint):
         vn, ve, vd = sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s
         yaw_rate_enu = frames.yaw_rate_enu_from_ned(sp.yaw_rate_ned_rad_s)
@@ -297,8 +309,8 @@ def debug_row(result: TickResult, ground_speed_m_s: float, alt_m: float,
         float(roll),
         float(alt_m),
         float(result.course_cmd_rad),
-        float(prev_course_cmd_rad),
-        float(prev_course_rad),
+        float(result.prev_course_cmd_rad),
+        float(result.prev_course_rad),
         float(result.t_s) - _float32(result.t_s),
         1.0,
     ]

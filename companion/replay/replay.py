@@ -272,7 +272,7 @@ def replay_flight(
     n = len(flight.ticks)
     # Python lists while stepping (an item store is several times cheaper than into an ndarray).
     cols = {name: [math.nan] * n for name in _SERIES}
-    compared = np.zeros(n, dtype=bool)
+    compared = [False] * n
     phase_logged: list[str] = []
     phase_replayed: list[str] = []
     first_divergence = None
@@ -282,6 +282,7 @@ def replay_flight(
     s_hint = None
 
     coasts = flight.coasts if companion_log else []
+    tol_yaw, tol_vel = tolerance.yaw_rate_rad_s, tolerance.vel_m_s
     coast_next = 0
     coast_diffs: list[dict] = []
     last_res = None
@@ -308,18 +309,34 @@ def replay_flight(
                     "replayed": {k: _json_float(v) for k, v in _setpoint_fields(sp).items()},
                 }
 
+    # The columns as local names: the loop below runs once per tick of an hour-long log.
+    c_t, c_tick, c_x, c_y = cols["t_s"], cols["tick"], cols["x_enu_m"], cols["y_enu_m"]
+    c_xtrack, c_a_log, c_a_rep = cols["crosstrack_m"], cols["a_logged_m_s2"], cols["a_replayed_m_s2"]
+    c_k1_log, c_k2_log, c_k1_rep, c_k2_rep = cols["k1_logged"], cols["k2_logged"], cols["k1_replayed"], cols["k2_replayed"]
+    c_yr_log, c_yr_rep = cols["yaw_rate_logged_rad_s"], cols["yaw_rate_replayed_rad_s"]
+    c_vx_log, c_vy_log, c_vz_log = cols["vx_logged_m_s"], cols["vy_logged_m_s"], cols["vz_logged_m_s"]
+    c_vx_rep, c_vy_rep, c_vz_rep = cols["vx_replayed_m_s"], cols["vy_replayed_m_s"], cols["vz_replayed_m_s"]
+    c_roll_log, c_roll_rep = cols["roll_logged_rad"], cols["roll_replayed_rad"]
+    c_dyaw, c_dvel, c_datt = cols["yaw_rate_diff_rad_s"], cols["vel_diff_m_s"], cols["attitude_diff_rad"]
+    i_prev, i_prev_cmd = DEBUG_INDEX["prev_course_rad"], DEBUG_INDEX["prev_course_cmd_rad"]
+    i_phase, i_xtrack, i_a = DEBUG_INDEX["phase_code"], DEBUG_INDEX["crosstrack_m"], DEBUG_INDEX["a_cmd_m_s2"]
+    i_k1, i_k2 = DEBUG_INDEX["k1"], DEBUG_INDEX["k2"]
+    n_coasts = len(coasts)
+    isfinite = math.isfinite
+
     with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
         for i, tk in enumerate(flight.ticks):
             if i % 1024 == 0:
                 bar.update_to(i)
-            replay_coasts_before(i)
-            recorded_prev = tk.debug_value("prev_course_rad") if "prev_course_rad" in DEBUG_INDEX else math.nan
-            if math.isfinite(recorded_prev):
+            if coast_next < n_coasts and coasts[coast_next].after_tick < i:
+                replay_coasts_before(i)
+            row = tk.debug
+            if row is not None and isfinite(row[i_prev]):
                 # The loop records the course state each tick was given (it differs from the
                 # previous row's when ticks coasted in between): use it as an input.
-                prev_course = recorded_prev
-                cmd = tk.debug_value("prev_course_cmd_rad")
-                prev_course_cmd = cmd if math.isfinite(cmd) else None
+                prev_course = row[i_prev]
+                cmd = row[i_prev_cmd]
+                prev_course_cmd = cmd if isfinite(cmd) else None
             t_s = _tick_time(tk) if companion_log else tk.t_s
             res = compute_tick(guidance, tk.tick, t_s, tk.sample, tk.sample_age_s, config,
                                yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course,
@@ -331,50 +348,61 @@ def replay_flight(
                 runner_cmd = res.course_cmd_rad
             sp = res.setpoint
             out = res.output
-            cols["t_s"][i] = tk.t_s
-            cols["tick"][i] = tk.tick
-            if tk.sample is not None:
-                cols["x_enu_m"][i] = tk.sample.y_ned_m
-                cols["y_enu_m"][i] = tk.sample.x_ned_m
-            cols["a_replayed_m_s2"][i] = out.a_cmd_m_s2 if out is not None else 0.0
-            cols["k1_replayed"][i] = out.k1 if out is not None else math.nan
-            cols["k2_replayed"][i] = out.k2 if out is not None else math.nan
-            if isinstance(sp, VelocitySetpoint):
-                cols["yaw_rate_replayed_rad_s"][i] = sp.yaw_rate_ned_rad_s
-                cols["vx_replayed_m_s"][i] = sp.vx_ned_m_s
-                cols["vy_replayed_m_s"][i] = sp.vy_ned_m_s
-                cols["vz_replayed_m_s"][i] = sp.vz_ned_m_s
+            c_t[i] = tk.t_s
+            c_tick[i] = tk.tick
+            sample = tk.sample
+            if sample is not None:
+                c_x[i] = sample.y_ned_m
+                c_y[i] = sample.x_ned_m
+            if out is not None:
+                c_a_rep[i], c_k1_rep[i], c_k2_rep[i] = out.a_cmd_m_s2, out.k1, out.k2
+            else:
+                c_a_rep[i] = 0.0
+            velocity_out = type(sp) is VelocitySetpoint
+            if velocity_out:
+                c_yr_rep[i], c_vx_rep[i] = sp.yaw_rate_ned_rad_s, sp.vx_ned_m_s
+                c_vy_rep[i], c_vz_rep[i] = sp.vy_ned_m_s, sp.vz_ned_m_s
             phase_replayed.append(res.phase)
 
             logged = tk.setpoint
             if companion_log:
-                phase_logged.append(phase_name(tk.debug_value("phase_code")))
-                cols["crosstrack_m"][i] = tk.debug_value("crosstrack_m")
-                cols["a_logged_m_s2"][i] = tk.debug_value("a_cmd_m_s2")
-                cols["k1_logged"][i] = tk.debug_value("k1")
-                cols["k2_logged"][i] = tk.debug_value("k2")
+                phase_logged.append(phase_name(row[i_phase]))
+                c_xtrack[i], c_a_log[i] = row[i_xtrack], row[i_a]
+                c_k1_log[i], c_k2_log[i] = row[i_k1], row[i_k2]
             else:
                 phase_logged.append(res.phase)
-                if tk.sample is not None:
-                    x, y = tk.sample.y_ned_m, tk.sample.x_ned_m
+                if sample is not None:
+                    x, y = sample.y_ned_m, sample.x_ned_m
                     s_hint = path.project(x, y, s_hint)
-                    cols["crosstrack_m"][i] = path.crosstrack_m(x, y, s_hint)
+                    c_xtrack[i] = path.crosstrack_m(x, y, s_hint)
                 if logged is not None:
                     speed_h = math.hypot(logged.vx_ned_m_s, logged.vy_ned_m_s)
-                    cols["a_logged_m_s2"][i] = -logged.yaw_rate_ned_rad_s * speed_h
+                    c_a_log[i] = -logged.yaw_rate_ned_rad_s * speed_h
             if logged is None:
                 continue
-            fields = _setpoint_fields(logged)
-            cols["yaw_rate_logged_rad_s"][i] = fields["yaw_rate_rad_s"]
-            cols["vx_logged_m_s"][i] = fields["vx_m_s"]
-            cols["vy_logged_m_s"][i] = fields["vy_m_s"]
-            cols["vz_logged_m_s"][i] = fields["vz_m_s"]
-            cols["roll_logged_rad"][i] = fields["roll_rad"]
-            if isinstance(sp, AttitudeSetpoint):
-                cols["roll_replayed_rad"][i] = sp.roll_ned_rad
-            diff, reasons = _compare_setpoints(logged, sp, tolerance)
-            for key, value in diff.items():
-                cols[key][i] = value
+            if velocity_out and type(logged) is LoggedSetpoint:
+                # The common case, written out (_compare_setpoints is the general one).
+                c_yr_log[i], c_vx_log[i] = logged.yaw_rate_ned_rad_s, logged.vx_ned_m_s
+                c_vy_log[i], c_vz_log[i] = logged.vy_ned_m_s, logged.vz_ned_m_s
+                c_dyaw[i] = d_yaw = _absdiff(logged.yaw_rate_ned_rad_s, sp.yaw_rate_ned_rad_s)
+                c_dvel[i] = d_vel = math.sqrt(_absdiff(logged.vx_ned_m_s, sp.vx_ned_m_s) ** 2
+                                              + _absdiff(logged.vy_ned_m_s, sp.vy_ned_m_s) ** 2
+                                              + _absdiff(logged.vz_ned_m_s, sp.vz_ned_m_s) ** 2)
+                reasons = []
+                if not d_yaw <= tol_yaw:
+                    reasons.append("yaw_rate")
+                if not d_vel <= tol_vel:
+                    reasons.append("velocity")
+            else:
+                fields = _setpoint_fields(logged)
+                c_yr_log[i], c_vx_log[i] = fields["yaw_rate_rad_s"], fields["vx_m_s"]
+                c_vy_log[i], c_vz_log[i] = fields["vy_m_s"], fields["vz_m_s"]
+                c_roll_log[i] = fields["roll_rad"]
+                if isinstance(sp, AttitudeSetpoint):
+                    c_roll_rep[i] = sp.roll_ned_rad
+                diff, reasons = _compare_setpoints(logged, sp, tolerance)
+                c_dyaw[i], c_dvel[i], c_datt[i] = (diff["yaw_rate_diff_rad_s"], diff["vel_diff_m_s"],
+                                                   diff["attitude_diff_rad"])
             compared[i] = True
             if companion_log and phase_logged[-1] != res.phase:
                 reasons.append("phase")
@@ -385,7 +413,7 @@ def replay_flight(
         bar.update_to(n)
 
     cols = {name: np.array(values, dtype=float) for name, values in cols.items()}
-    cols["compared"] = compared
+    cols["compared"] = np.array(compared, dtype=bool)
     per_phase = _per_phase(cols, phase_logged if companion_log else phase_replayed)
     if coast_diffs:
         per_phase["coast"] = _per_phase(
@@ -445,8 +473,11 @@ def _tick_time(tk: LoggedTick) -> float:
     re-optimisation by a tick) plus the float32 residual ``t_s - float32(t_s)``: their sum
     restores the flown time to about 1e-11 s. Logs without the residual use the float32 time.
     """
-    residual = tk.debug_value("t_s_residual") if "t_s_residual" in DEBUG_INDEX else math.nan
+    residual = tk.debug[_I_RESIDUAL] if tk.debug is not None else math.nan
     return tk.t_s + residual if math.isfinite(residual) else tk.t_s
+
+
+_I_RESIDUAL = DEBUG_INDEX["t_s_residual"]
 
 
 def _divergence(tk: LoggedTick, i: int, cols: dict, phase_logged: str, phase_replayed: str,
