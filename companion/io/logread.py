@@ -538,6 +538,30 @@ class PacketEncoder:
         return self._pack(self._mav.attitude_encode(int(time_boot_ms), roll_rad, pitch_rad, yaw_rad,
                                                     0.0, 0.0, 0.0))
 
+    def global_position_int_packet(self, time_boot_ms: int, lat_deg: float, lon_deg: float, alt_msl_m: float,
+                                   rel_alt_m: float, vn_m_s: float, ve_m_s: float, vd_m_s: float,
+                                   heading_deg: float) -> bytes:
+        return self._pack(self._mav.global_position_int_encode(
+            int(time_boot_ms), int(round(lat_deg * 1e7)), int(round(lon_deg * 1e7)), int(round(alt_msl_m * 1e3)),
+            int(round(rel_alt_m * 1e3)), int(round(vn_m_s * 100)), int(round(ve_m_s * 100)),
+            int(round(vd_m_s * 100)), int(round(heading_deg * 100)) % 36000))
+
+    def gps_raw_int_packet(self, time_usec: int, lat_deg: float, lon_deg: float, alt_msl_m: float,
+                           ground_speed_m_s: float, course_deg: float, satellites: int = 10) -> bytes:
+        return self._pack(self._mav.gps_raw_int_encode(
+            int(time_usec), 3, int(round(lat_deg * 1e7)), int(round(lon_deg * 1e7)), int(round(alt_msl_m * 1e3)),
+            121, 200, int(round(ground_speed_m_s * 100)), int(round(course_deg * 100)) % 36000, satellites))
+
+    def vfr_hud_packet(self, airspeed_m_s: float, ground_speed_m_s: float, heading_deg: float,
+                       throttle_pct: int, alt_m: float, climb_m_s: float) -> bytes:
+        return self._pack(self._mav.vfr_hud_encode(airspeed_m_s, ground_speed_m_s, int(heading_deg) % 360,
+                                                   int(throttle_pct), alt_m, climb_m_s))
+
+    def sys_status_packet(self, voltage_mv: int, current_ca: int, battery_pct: int, load_permille: int = 200) -> bytes:
+        sensors = 0x0020_FC3F  # gyro, accel, mag, baro, GPS, ... present, enabled and healthy
+        return self._pack(self._mav.sys_status_encode(sensors, sensors, sensors, int(load_permille), int(voltage_mv),
+                                                      int(current_ca), int(battery_pct), 0, 0, 0, 0, 0, 0))
+
     def velocity_setpoint_packet(self, target_system: int, target_component: int, type_mask: int,
                                  coordinate_frame: int, vx_m_s: float, vy_m_s: float, vz_m_s: float,
                                  yaw_rate_rad_s: float, time_boot_ms: int = 0) -> bytes:

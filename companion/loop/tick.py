@@ -105,11 +105,11 @@ class TickConfig:
         if not (0 < self.max_bank_deg < 90):
             raise ValueError(f"max_bank_deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
 
-    @property
+    @cached_property
     def dt_s(self) -> float:
         return 1.0 / self.rate_hz
 
-    @property
+    @cached_property
     def altitude_hold(self) -> AltitudeHold:
         return AltitudeHold(self.altitude_m, self.alt_gain_1_s, self.max_climb_m_s)
 

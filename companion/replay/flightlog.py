@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple
 
 from companion.errors import LogError
 from companion.io.link import GlobalOrigin
@@ -53,8 +53,7 @@ N_DEBUG = len(DEBUG_FIELDS)
 DEBUG_INDEX = {name: i for i, name in enumerate(DEBUG_FIELDS)}
 
 
-@dataclass(frozen=True)
-class LoggedSetpoint:
+class LoggedSetpoint(NamedTuple):
     """The velocity + yaw-rate fields of one logged SET_POSITION_TARGET_LOCAL_NED (NED)."""
 
     vx_ned_m_s: float
@@ -65,8 +64,7 @@ class LoggedSetpoint:
     coordinate_frame: int
 
 
-@dataclass(frozen=True)
-class LoggedAttitude:
+class LoggedAttitude(NamedTuple):
     """The fields of one logged SET_ATTITUDE_TARGET (fixed-wing output): quaternion w, x, y, z
     (NED body) and thrust."""
 
@@ -181,28 +179,33 @@ def read_flight(
     last_target: dict[tuple[int, int], int] = {}  # sender -> target system of its last setpoint
     not_autopilots: set[tuple[int, int]] = set()  # senders whose HEARTBEAT says MAV_AUTOPILOT_INVALID
     companion_ticks: list[LoggedTick] = []
-    setpoint_ticks: list[LoggedTick] = []
+    setpoint_pairs: list[tuple] = []  # (tlog time, (tlog time, sample), yaw, setpoint)
     coasts: list[LoggedCoast] = []
     notes: list[str] = []
     reconstructed = 0
-    first_boot_ms = None
 
     with ByteProgress(reader.size_bytes, "reading", enabled=progress) as bar:
-        for rec in reader:
-            if reader.records % PROGRESS_EVERY_RECORDS == 0:
+        for count, rec in enumerate(reader, 1):
+            if count % PROGRESS_EVERY_RECORDS == 0:
                 bar.update_to(rec.offset)
             msg = rec.msg
             if msg is None:
                 continue
             mid = rec.msg_id
-            if mid == ID_HEARTBEAT:
-                if msg.autopilot == MAV_AUTOPILOT_INVALID:  # a GCS, a companion, a camera
-                    not_autopilots.add((rec.src_system, rec.src_component))
-            elif mid == ID_LPN and (rec.src_system, rec.src_component) not in not_autopilots:
+            if mid == ID_LPN:
+                if not_autopilots and (rec.src_system, rec.src_component) in not_autopilots:
+                    continue
                 sample = _sample(msg)
                 if sample is not None:
-                    samples_by_ms.setdefault(rec.src_system, {})[sample.time_boot_ms] = sample
-                    newest_sample[rec.src_system] = (rec.time_s, sample)
+                    system = rec.src_system
+                    by_ms = samples_by_ms.get(system)
+                    if by_ms is None:
+                        by_ms = samples_by_ms[system] = {}
+                    by_ms[sample.time_boot_ms] = sample
+                    newest_sample[system] = (rec.time_s, sample)
+            elif mid == ID_HEARTBEAT:
+                if msg.autopilot == MAV_AUTOPILOT_INVALID:  # a GCS, a companion, a camera
+                    not_autopilots.add((rec.src_system, rec.src_component))
             elif mid == ID_GPS_GLOBAL_ORIGIN and (rec.src_system, rec.src_component) not in not_autopilots:
                 lat, lon, alt = msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3
                 if -90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and abs(alt) < 1.0e5:
@@ -216,15 +219,8 @@ def read_flight(
                 events.setdefault(sender, []).append((rec.time_s, sp, newest_sample.get(msg.target_system)))
                 last_target[sender] = msg.target_system
                 found = newest_sample.get(msg.target_system)
-                if found is not None:
-                    sample_time, sample = found
-                    if first_boot_ms is None:
-                        first_boot_ms = sample.time_boot_ms
-                    setpoint_ticks.append(LoggedTick(
-                        time_unix_s=rec.time_s, tick=len(setpoint_ticks),
-                        t_s=(sample.time_boot_ms - first_boot_ms) / 1000.0, sample=sample,
-                        sample_age_s=max(0.0, rec.time_s - sample_time),
-                        yaw_ned_rad=newest_yaw.get(msg.target_system), setpoint=sp))
+                if found is not None:  # a "setpoints" tick, built below if the log is of that kind
+                    setpoint_pairs.append((rec.time_s, found, newest_yaw.get(msg.target_system), sp))
             elif mid == ID_SAT:
                 sender = (rec.src_system, rec.src_component)
                 events.setdefault(sender, []).append(
@@ -235,7 +231,7 @@ def read_flight(
                 name = msg.name.decode("ascii", "replace") if isinstance(msg.name, bytes) else str(msg.name)
                 if name != GUIDANCE_ARRAY_NAME:
                     continue
-                row = list(map(float, msg.data[:N_DEBUG]))
+                row = list(msg.data[:N_DEBUG])  # floats already (decoded float32)
                 sender = (rec.src_system, rec.src_component)
                 # the autopilot this sender commands: its last setpoint's target, else its own
                 # system (a companion shares its vehicle's system id), else the first to send positions
@@ -277,8 +273,8 @@ def read_flight(
         if reconstructed:
             notes.append(f"{reconstructed} ticks used a LOCAL_POSITION_NED sample missing from the log; "
                          "rebuilt from the recorded internals (velocity approximate)")
-    elif setpoint_ticks:
-        kind, ticks = "setpoints", setpoint_ticks
+    elif setpoint_pairs:
+        kind, ticks = "setpoints", _setpoint_ticks(setpoint_pairs)
         notes.append("no companion guidance records: each logged setpoint is paired with the newest "
                      "LOCAL_POSITION_NED before it (another controller's setpoints are expected to differ)")
     else:
@@ -291,6 +287,16 @@ def read_flight(
         next(iter(origins.values())) if len(origins) == 1 else None)
     return LoggedFlight(path, kind, ticks, coasts if kind == "companion" else [], list(reader.warnings),
                         notes, reader.records, origin)
+
+
+def _setpoint_ticks(pairs: list[tuple]) -> list[LoggedTick]:
+    """The ticks of a "setpoints" log: each setpoint with the newest sample before it, the tick
+    time the sample's autopilot time since the first one, the age the tlog time between them."""
+    first_boot_ms = pairs[0][1][1].time_boot_ms
+    return [LoggedTick(time_unix_s=time_s, tick=i, t_s=(sample.time_boot_ms - first_boot_ms) / 1000.0,
+                       sample=sample, sample_age_s=max(0.0, time_s - sample_time), yaw_ned_rad=yaw,
+                       setpoint=sp)
+            for i, (time_s, (sample_time, sample), yaw, sp) in enumerate(pairs)]
 
 
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:

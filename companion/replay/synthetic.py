@@ -13,6 +13,13 @@ The vehicle: its horizontal velocity follows the commanded velocity through a fi
 ``LOCAL_POSITION_NED`` per tick. The tick time carries a
 small deterministic jitter (as a wall clock would), so ``t_s`` is not on the tick grid.
 
+The rest of the autopilot's telemetry is what a recorded ArduCopter flight carries (the real
+ArduCopter SITL log in the project's test data, ``TELEMETRY_STREAMS_HZ``): ``ATTITUDE`` at the
+rate ``companion fly`` requests (20 Hz), ``GLOBAL_POSITION_INT`` 10 Hz, ``GPS_RAW_INT`` and
+``VFR_HUD`` 5 Hz, ``SYS_STATUS`` 2 Hz and a ``HEARTBEAT`` from each side at 1 Hz: 3.9 records per
+50 Hz tick, as in that log. Replay decodes the attitude and heartbeats and only checks and counts
+the others.
+
 :func:`replay_throughput` times the replay of such a flight (default: one hour at 50 Hz on a
 closed racetrack) and is what ``companion bench perf`` reports.
 """
@@ -65,7 +72,19 @@ path:
 guidance: {l1_m: 10.0, method: corrector, rate_hz: 50}
 """
 
+#: Telemetry the autopilot streams besides LOCAL_POSITION_NED (one per tick), Hz: the streams of
+#: the recorded ArduCopter SITL flight, with ATTITUDE at the rate ``companion fly`` requests.
+TELEMETRY_STREAMS_HZ = {"ATTITUDE": 20.0, "GLOBAL_POSITION_INT": 10.0, "GPS_RAW_INT": 5.0,
+                        "VFR_HUD": 5.0, "SYS_STATUS": 2.0, "HEARTBEAT": 1.0}
+#: Where the synthetic flight's local frame sits on the Earth (for the geodetic streams).
+ORIGIN_LAT_DEG, ORIGIN_LON_DEG, ORIGIN_ALT_M = 47.397742, 8.545594, 488.0
+
 _F32x6 = struct.Struct("<6f")
+
+
+def _due(k: int, rate_hz: float, stream_hz: float) -> bool:
+    """Whether a ``stream_hz`` stream sends at tick ``k`` of a ``rate_hz`` loop (evenly spread)."""
+    return k == 0 or int(k * stream_hz / rate_hz) != int((k - 1) * stream_hz / rate_hz)
 
 
 def _float32(*values: float) -> tuple[float, ...]:
@@ -139,6 +158,23 @@ def write_synthetic_flight(
 
     with TlogWriter(tlog_path, min_free_bytes=0) as tlog:
 
+        def write_telemetry(k: int, boot_ms: int, at_unix_s: float) -> None:
+            """The autopilot's other streams due at tick ``k`` (they only fill the log)."""
+            speed = math.hypot(ve, vn)
+            course_deg = math.degrees(math.atan2(ve, vn)) % 360.0
+            lat = ORIGIN_LAT_DEG + math.degrees(y / 6_378_137.0)
+            lon = ORIGIN_LON_DEG + math.degrees(x / (6_378_137.0 * math.cos(math.radians(ORIGIN_LAT_DEG))))
+            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GLOBAL_POSITION_INT"]):
+                tlog.write(autopilot.global_position_int_packet(boot_ms, lat, lon, ORIGIN_ALT_M + alt, alt, vn, ve,
+                                                                0.0, course_deg), at_unix_s)
+            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GPS_RAW_INT"]):
+                tlog.write(autopilot.gps_raw_int_packet(boot_ms * 1000, lat, lon, ORIGIN_ALT_M + alt, speed,
+                                                        course_deg), at_unix_s)
+            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["VFR_HUD"]):
+                tlog.write(autopilot.vfr_hud_packet(speed, speed, course_deg, 45, ORIGIN_ALT_M + alt, 0.0), at_unix_s)
+            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["SYS_STATUS"]):
+                tlog.write(autopilot.sys_status_packet(12_400, 1_250, 80), at_unix_s)
+
         def write_row(result, at_unix_s: float) -> None:
             time_usec = result.sample.time_boot_ms * 1000 if result.sample is not None else 0
             tlog.write(companion.debug_float_array_packet("guidance", result.tick, time_usec, result.debug),
@@ -148,18 +184,19 @@ def write_synthetic_flight(
             t_grid = k * dt
             unix = START_UNIX_S + t_grid
             boot_ms = BOOT_MS_AT_START + int(round(t_grid * 1000.0))
-            if k % int(round(rate_hz)) == 0:
+            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["HEARTBEAT"]):
                 tlog.write(autopilot.heartbeat_packet(MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_ARDUPILOTMEGA,
                                                       GUIDED_ARMED_BASE_MODE, COPTER_GUIDED), unix - 0.002)
                 tlog.write(companion.heartbeat_packet(MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID),
                            unix - 0.001)
+            write_telemetry(k, boot_ms, unix - 0.003)
             # the autopilot's sample, as it crosses the wire (float32)
             if dropout_s is None or not (dropout_s[0] <= t_grid < dropout_s[1]):
                 fields = _float32(y, x, -alt, vn, ve, 0.0)
                 tlog.write(autopilot.local_position_ned_packet(boot_ms, *fields), unix - SAMPLE_AGE_S)
                 sample = PositionSample(boot_ms, *fields)
                 sample_t = t_grid
-            if k % 5 == 0:
+            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["ATTITUDE"]):
                 yaw_ned = frames.yaw_ned_from_enu(math.atan2(vn, ve))
                 tlog.write(autopilot.attitude_packet(boot_ms, 0.0, 0.0, yaw_ned), unix - SAMPLE_AGE_S / 2)
                 yaw_seen = _float32(yaw_ned)[0]

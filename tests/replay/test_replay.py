@@ -361,3 +361,30 @@ def test_altered_coast_setpoint_is_caught(coasting_flight, tmp_path):
     assert result.exit_code == 1
     assert fd["coast"] is True and fd["reasons"] == ["yaw_rate"]
     assert fd["time_s"] == pytest.approx((coast_at[2] - 1_795_000_000_000_000) / 1e6, abs=0.02)
+
+
+def test_synthetic_log_streams_the_recorded_arducopter_telemetry_at_its_rates(flight):
+    """The synthetic flight's telemetry has the rates stated in TELEMETRY_STREAMS_HZ, and those are
+    the rates the real ArduCopter SITL log streams while it is being commanded (ATTITUDE: the
+    rate ``companion fly`` requests)."""
+    from collections import Counter
+
+    from companion.io.logread import MSG_NAME
+    from companion.loop.runner import FlyOptions
+    from companion.replay.synthetic import TELEMETRY_STREAMS_HZ
+
+    records, warnings = read_tlog(flight, decode_ids=())
+    assert warnings == []
+    counts = Counter(MSG_NAME[r.msg_id] for r in records if r.src_component == 1)
+    for name, hz in TELEMETRY_STREAMS_HZ.items():
+        assert counts[name] == pytest.approx(hz * FLIGHT_S, abs=1), name
+    assert counts["LOCAL_POSITION_NED"] == round(50 * FLIGHT_S)
+    assert TELEMETRY_STREAMS_HZ["ATTITUDE"] == FlyOptions.attitude_rate_hz
+
+    # The real log, over the 30 s its controller sent setpoints.
+    real, _ = read_tlog(COPTER_LOG, decode_ids=())
+    spt = [r.time_s for r in real if r.msg_id == SPT_ID]
+    t0, t1 = spt[0], spt[-1]
+    real_counts = Counter(MSG_NAME[r.msg_id] for r in real if t0 <= r.time_s <= t1 and r.src_component == 1)
+    for name in ("GLOBAL_POSITION_INT", "GPS_RAW_INT", "VFR_HUD", "SYS_STATUS", "HEARTBEAT"):
+        assert real_counts[name] / (t1 - t0) == pytest.approx(TELEMETRY_STREAMS_HZ[name], rel=0.25), name
