@@ -34,6 +34,7 @@ noisier and the loop-latency/CPU parts are skipped when the mock cannot start.
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import os
@@ -241,6 +242,8 @@ def measure_loop_latency(rate_hz: float, duration_s: float) -> dict:
         t_first = None
         prev_course = mission.path.start_heading_rad
         prev_cmd = None
+        gc.collect()
+        gc.freeze()  # as the flight loop does before its first tick (``FlightRunner.run``)
         end = time.monotonic() + duration_s
         while time.monotonic() < end:
             link.heartbeat_if_due()
@@ -267,6 +270,7 @@ def measure_loop_latency(rate_hz: float, duration_s: float) -> dict:
         return {"p50": float(np.median(a)), "p99": float(np.percentile(a, 99)), "max": float(a.max()),
                 "n": int(a.size), "stream_hz": a.size / duration_s}
     finally:
+        gc.unfreeze()
         if link is not None:
             link.close()
         mock.stop()
