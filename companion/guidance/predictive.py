@@ -15,9 +15,10 @@ its feedback core and adds:
    ``lag_s`` from the commanded to the achieved lateral acceleration, ``|a| <= a_max_m_s2``, a
    known steady wind. The law tracks the achieved acceleration ``a_hat`` itself, from its own
    command history through the same lag model.
-2. **One cost, one knob**: ``sum_k (d_k^2 + lambda u_k^2) dt`` over ``horizon_s`` (d the
-   cross-track error, u the commanded acceleration). ``lambda`` (s^4) is the user's one knob:
-   small values track as tightly as the vehicle allows, larger values fly smoother.
+2. **One cost, one knob**: ``sum_k ((d_k - r_k)^2 + lambda u_k^2) dt`` over ``horizon_s`` (d the
+   cross-track error, u the commanded acceleration, r the capture reference of item 6).
+   ``lambda`` (s^4) is the user's one knob: small values track as tightly as the vehicle allows,
+   larger values fly smoother.
 3. **Look-ahead distance chosen online**: every ``reopt_period_s``, ``n_candidates`` distances
    (geometric between ``l_min_m`` and ``l_max_m``) are rolled out in one numpy batch and the
    cheapest is kept.
@@ -28,6 +29,15 @@ its feedback core and adds:
    compensating the lag) that feedback alone cannot.
 5. **Limits respected**: every command, executed or rolled out, is clipped to ``a_max``, so the
    flown maximum never exceeds the vehicle's limit and the search knows about saturation.
+6. **A capture reference**: the cost does not ask for ``d = 0`` at once but for the cross-track
+   error to die out as a critically damped second-order response from where the vehicle is,
+   ``r(t) = (d0 + (d0' + d0 / T) t) exp(-t / T)`` with ``T = capture_tc_scale lambda^(1/4)``
+   (lambda^(1/4) is the time scale of ``d^2 + lambda a^2`` for a double integrator), re-anchored
+   at every re-optimisation; a rate away from the path is not followed (d0' taken as 0). Without
+   it, the many metres of error of an approach outweigh, in ``d^2``, the few decimetres of an
+   overshoot, so the plan dived at the path and crossed it; with it, an approach flattens out
+   in time. On the path (d0, d0' of millimetres) the reference is millimetres too and the cost is
+   the plain ``d^2``. See :func:`capture_reference`.
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does. An
@@ -77,6 +87,9 @@ class PredictiveParams:
     curvature_ff : share, in [0, 1], of the pursuit's implied curvature at the closest point
         replaced by the path's own curvature there (see :func:`pursuit_command`); 0 is Park's
         pursuit as it is.
+    capture_tc_scale : time constant of the capture reference (see :func:`capture_reference`)
+        as a multiple of ``lambda_s4 ** 0.25`` (s per s), >= 0; 0 (or lambda 0) penalises the
+        cross-track error itself, as the law did before the reference.
     """
 
     lambda_s4: float = 0.05
@@ -93,6 +106,7 @@ class PredictiveParams:
     wind_x_m_s: float = 0.0
     wind_y_m_s: float = 0.0
     curvature_ff: float = 1.0
+    capture_tc_scale: float = 0.6
 
     def __post_init__(self) -> None:
         def number(name: str) -> float:
@@ -103,7 +117,7 @@ class PredictiveParams:
 
         if not 0.0 <= number("curvature_ff") <= 1.0:
             raise ValueError(f"curvature_ff: expected a number in [0, 1], got {self.curvature_ff!r}")
-        for name in ("lambda_s4", "lag_s"):
+        for name in ("lambda_s4", "lag_s", "capture_tc_scale"):
             if not (math.isfinite(number(name)) and number(name) >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {getattr(self, name)!r}")
         if not number("a_max_m_s2") > 0:
@@ -120,6 +134,10 @@ class PredictiveParams:
         for name in ("wind_x_m_s", "wind_y_m_s"):
             if not math.isfinite(number(name)):
                 raise ValueError(f"{name}: expected a finite number, got {getattr(self, name)!r}")
+
+    def capture_tc_s(self) -> float:
+        """Time constant of the capture reference (s); 0 when it is disabled."""
+        return self.capture_tc_scale * self.lambda_s4 ** 0.25
 
     def candidates_m(self) -> np.ndarray:
         """The look-ahead distances the search tries (geometric from l_min_m to l_max_m)."""
@@ -190,6 +208,27 @@ def _nearest(win: _Window, x: np.ndarray, y: np.ndarray):
     along = np.minimum(np.maximum(win.tx[i] * ex + win.ty[i] * ey, -WINDOW_SPACING_M), WINDOW_SPACING_M)
     d = win.tx[i] * ey - win.ty[i] * ex - 0.5 * win.k[i] * along * along
     return i, d, r2
+
+
+def capture_reference(d0_m: float, d_rate0_m_s: float, tc_s: float, t_s: np.ndarray) -> np.ndarray:
+    """The cross-track error the rollout cost asks for, ``t_s`` seconds after a re-optimisation.
+
+    A critically damped second-order decay with time constant ``tc_s`` from the error ``d0_m``
+    and its rate ``d_rate0_m_s`` at the re-optimisation::
+
+        r(t) = (d0 + (d0' + d0 / T) t) exp(-t / T)
+
+    so ``r(0) = d0``, ``r'(0) = d0'`` and ``r -> 0``. A rate *away* from the path
+    (``d0 d0' > 0``) is not followed: it is taken as 0, so the reference turns back at once
+    (``r = d0 (1 + t/T) exp(-t/T)``). A rate towards the path is kept, so an approach is asked to
+    flatten out progressively rather than to stop dead; with ``d0' = -d0/T`` the reference is the
+    plain exponential ``d0 exp(-t/T)``. ``tc_s <= 0`` returns zeros (the plain ``d^2`` cost).
+    """
+    t = np.asarray(t_s, dtype=float)
+    if not tc_s > 0.0:
+        return np.zeros_like(t)
+    rate = 0.0 if d0_m * d_rate0_m_s > 0.0 else d_rate0_m_s
+    return (d0_m + (rate + d0_m / tc_s) * t) * np.exp(-t / tc_s)
 
 
 def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s2: float,
@@ -300,12 +339,14 @@ class PredictiveGuidance:
         gy = state.speed_m_s * math.sin(state.course_rad) - p.wind_y_m_s
         return math.atan2(gy, gx), max(math.hypot(gx, gy), MIN_SPEED_M_S)
 
-    def rollout(self, state: VehicleState, look_m: np.ndarray, plans: np.ndarray) -> np.ndarray:
+    def rollout(self, state: VehicleState, look_m: np.ndarray, plans: np.ndarray,
+                d_ref_m: np.ndarray | None = None) -> np.ndarray:
         """Batched closed-loop rollouts; returns the residuals ``(K, 2 * steps)``.
 
         Row k flies pursuit with look-ahead ``look_m[k]`` plus the piecewise-constant correction
         ``plans[k]`` through the lag and the limit. The cost of a row is the sum of its squared
-        residuals: ``sum (d^2 + lambda u^2) dt``.
+        residuals: ``sum ((d - r)^2 + lambda u^2) dt``, r the capture reference ``d_ref_m`` (one
+        value per rollout step; None: zero).
         """
         p = self.params
         win = self._win
@@ -327,7 +368,7 @@ class PredictiveGuidance:
             u, _, _, _, d = pursuit_command(win, x, y, np.arctan2(gy, gx), np.hypot(gx, gy), look_m, math.inf,
                                             p.curvature_ff, p.lag_s)
             u = np.minimum(np.maximum(u + plans[:, self._seg_of_step[n]], -p.a_max_m_s2), p.a_max_m_s2)
-            res[:, 2 * n] = d * sq_dt
+            res[:, 2 * n] = (d if d_ref_m is None else d - d_ref_m[n]) * sq_dt
             res[:, 2 * n + 1] = u * sq_lam_dt
             a_act += (u - a_act) * alpha
             dh = a_act / v_air * dt
@@ -344,6 +385,19 @@ class PredictiveGuidance:
         idx = np.floor(mids / self._segment_s).astype(int)
         out = np.where(idx < p.plan_segments, self._plan[np.minimum(idx, p.plan_segments - 1)], 0.0)
         return out
+
+    def _reference(self, state: VehicleState) -> np.ndarray | None:
+        """The capture reference over the rollout steps, from the vehicle's error and its rate."""
+        tc = self.params.capture_tc_s()
+        if not tc > 0.0:
+            return None
+        win = self._win
+        i0, d0, _ = _nearest(win, np.array([state.x_m]), np.array([state.y_m]))
+        i = int(i0[0])
+        vx = state.speed_m_s * math.cos(state.course_rad)
+        vy = state.speed_m_s * math.sin(state.course_rad)
+        rate = float(win.tx[i] * vy - win.ty[i] * vx)  # ground velocity across the path, left positive
+        return capture_reference(float(d0[0]), rate, tc, np.arange(self._steps) * self.params.rollout_dt_s)
 
     def reoptimise(self, t_s: float, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> float:
         """Choose the look-ahead distance and refine the correction plan; returns the plan's cost.
@@ -362,6 +416,7 @@ class PredictiveGuidance:
         v_g = max(state.speed_m_s, MIN_SPEED_M_S)
         reach = v_g * (p.horizon_s + p.reopt_period_s) * 1.3 + 1.5 * max(p.l_max_m, SQRT2 * abs(crosstrack_m)) + 5.0
         self._win = _Window(self.path, s_proj_m, reach)
+        d_ref = self._reference(state)
         plan = self._shifted_plan(t_s)
         look = self._candidates
         k = look.size
@@ -376,7 +431,7 @@ class PredictiveGuidance:
         plans[:k] = plan
         if refine:
             plans[2 * k:] = plan + eps * np.eye(m)
-        res = self.rollout(state, rows_look, plans)
+        res = self.rollout(state, rows_look, plans, d_ref)
         costs = np.einsum("ij,ij->i", res[:2 * k], res[:2 * k])
         best = int(np.argmin(costs))
         previous = int(np.argmin(np.abs(look - self._look_m)))
@@ -393,7 +448,7 @@ class PredictiveGuidance:
                 damping = 1e-6 + 1e-3 * np.trace(jtj) / m
                 step = np.linalg.solve(jtj + damping * np.eye(m), -jac.T @ r0)
                 trial = np.clip(plan + np.outer(LINE_SEARCH, step), -self._plan_bound, self._plan_bound)
-                rc = self.rollout(state, np.full(len(LINE_SEARCH), self._look_m), trial)
+                rc = self.rollout(state, np.full(len(LINE_SEARCH), self._look_m), trial, d_ref)
                 cc = np.einsum("ij,ij->i", rc, rc)
                 j = int(np.argmin(cc))
                 if cc[j] >= cost:
@@ -402,7 +457,7 @@ class PredictiveGuidance:
                 if iteration + 1 < p.refine_iterations:
                     pert = np.tile(plan, (m + 1, 1))
                     pert[1:] += eps * np.eye(m)
-                    r = self.rollout(state, np.full(m + 1, self._look_m), pert)
+                    r = self.rollout(state, np.full(m + 1, self._look_m), pert, d_ref)
                     r0 = r[0]
                     jac = (r[1:] - r0).T / eps
         self._plan = plan
