@@ -185,6 +185,27 @@ class Path:
         i, u = self._locate(s_m)
         return self._k[i] + u * (self._k[i + 1] - self._k[i])
 
+    def max_abs_curvature(self, s_from_m: float, s_to_m: float) -> float:
+        """Largest ``|curvature|`` (1/m) on ``[s_from_m, s_to_m]`` (wrapping on a closed path).
+
+        Exact for the interpolant: the curvature is linear between nodes, so the largest value is
+        at one of the nodes that bracket the interval.
+        """
+        if s_to_m < s_from_m:
+            s_from_m, s_to_m = s_to_m, s_from_m
+        n = self._n
+        if self.closed:
+            if s_to_m - s_from_m >= self.length_m:
+                return float(np.max(np.abs(self.k_table_1_m)))
+            i0 = int(math.floor((s_from_m % self.length_m) * self._inv_h))
+            i1 = i0 + int(math.ceil((s_to_m - s_from_m) * self._inv_h)) + 1
+            k = self.k_table_1_m
+            idx = np.arange(i0, i1 + 1) % n
+            return float(np.max(np.abs(k[idx])))
+        i0 = min(max(int(math.floor(s_from_m * self._inv_h)), 0), n)
+        i1 = min(max(int(math.ceil(s_to_m * self._inv_h)), 0), n)
+        return float(np.max(np.abs(self.k_table_1_m[i0:i1 + 1])))
+
     def radius_of_curvature_m(self, s_m: float) -> float:
         """``1 / |curvature|`` at ``s_m`` (``inf`` on a straight stretch)."""
         k = abs(self.curvature(s_m))

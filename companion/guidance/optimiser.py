@@ -35,6 +35,9 @@ from companion.geometry.paths import Path
 from companion.guidance.corrector import corrector_command_vxy
 from companion.guidance.types import GuidanceParams
 
+#: Below this curvature (1/m) the path counts as straight for the search: there the corrector's
+#: weight ``w2' = k2 v_m k^2 / (1 + l43)`` is at most 1e-11 of ``w1'`` for every candidate.
+STRAIGHT_CURVATURE_1_M = 1e-9
 RHO_LOG10_RANGE = (-1.0, 7.0)
 RHO_COARSE_COUNT = 17  # log-spaced ratios in the first batch (half a decade apart)
 WARM_OFFSETS = (-0.5, -0.25, 0.0, 0.25, 0.5)  # around the previous optimum, in grid steps
@@ -84,6 +87,10 @@ class GainOptimiser:
         d_online = min(self.params.d_limit_factor * self.params.l1_m, r_proj)
         return d_online / max(speed_m_s, 1e-3)
 
+    def _rollout_steps(self, window_s: float) -> int:
+        """Rollout steps over a window: one per guidance tick, at most ``ROLLOUT_MAX_STEPS``."""
+        return max(1, min(ROLLOUT_MAX_STEPS, int(math.ceil(window_s * self.params.rate_hz))))
+
     def optimise(self, x_m: float, y_m: float, course_rad: float, speed_m_s: float,
                  s_proj_m: float, s_look_m: float, warm_ratio: float | None = None,
                  a_achieved_m_s2: float = 0.0) -> tuple[float, float, float]:
@@ -98,6 +105,14 @@ class GainOptimiser:
         """
         p = self.params
         window = self.window_s(s_proj_m, speed_m_s)
+        # A straight reach: wherever the rollouts can take the look-ahead point (each rollout
+        # step moves it by V dt plus a Newton correction of at most 2 m), the corrector weighs
+        # nothing and every candidate flies constant L1; the search cannot tell them apart, so it
+        # is skipped and the gains say what is flown: k2 = 0.
+        n_steps = self._rollout_steps(window)
+        reach = max(s_look_m, s_proj_m) + speed_m_s * window + 2.0 * n_steps
+        if self.path.max_abs_curvature(min(s_proj_m, s_look_m), reach) < STRAIGHT_CURVATURE_1_M:
+            return p.k1_max, 0.0, window
         # One batch: both pure ends, the log grid, and the previous optimum with neighbours
         # a quarter and an eighth of the grid step away on each side (the warm start refines).
         finite = list(10.0 ** self._coarse_log10)
@@ -123,7 +138,7 @@ class GainOptimiser:
         V = speed_m_s
         l1 = p.l1_m
         l1sq = l1 * l1
-        n_steps = max(1, min(ROLLOUT_MAX_STEPS, int(math.ceil(window_s * p.rate_hz))))
+        n_steps = self._rollout_steps(window_s)
         dt = window_s / n_steps
         x = np.full(m, x_m)
         y = np.full(m, y_m)

@@ -25,6 +25,7 @@ attitudes from senders whose HEARTBEAT says they are no autopilot (a ground stat
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, NamedTuple
@@ -77,7 +78,7 @@ class LoggedAttitude(NamedTuple):
 class LoggedTick:
     """Everything known about one tick of the logged flight.
 
-    ``debug`` is the recorded internals row (companion logs) or None; ``setpoint`` is None when
+    ``debug`` is the recorded internals row (companion logs, float32 ``array``) or None; ``setpoint`` is None when
     the setpoint of a recorded tick was lost (damaged log).
     """
 
@@ -88,7 +89,7 @@ class LoggedTick:
     sample_age_s: float
     yaw_ned_rad: float | None
     setpoint: LoggedSetpoint | LoggedAttitude | None
-    debug: list[float] | None = None
+    debug: array | None = None
     sample_reconstructed: bool = False
 
     def debug_value(self, name: str) -> float:
@@ -231,7 +232,9 @@ def read_flight(
                 name = msg.name.decode("ascii", "replace") if isinstance(msg.name, bytes) else str(msg.name)
                 if name != GUIDANCE_ARRAY_NAME:
                     continue
-                row = list(msg.data[:N_DEBUG])  # floats already (decoded float32)
+                # As recorded, float32 (an hour's log holds 180,000 rows: a list of Python floats
+                # would take five times the memory, and filling it, time).
+                row = array("f", msg.data[:N_DEBUG])
                 sender = (rec.src_system, rec.src_component)
                 # the autopilot this sender commands: its last setpoint's target, else its own
                 # system (a companion shares its vehicle's system id), else the first to send positions

@@ -148,3 +148,25 @@ def test_bad_inputs_raise_value_errors_naming_the_field():
         waypoint_path([(0, 0), (0, 0), (1, 1)])
     with pytest.raises(ValueError, match="closed"):
         parametric_path(np.cos, np.sin, (0.0, 3.0), closed=True)
+
+
+def test_largest_curvature_over_an_interval_sees_the_arc_and_wraps_on_a_closed_racetrack():
+    from companion.mission import parse_mission
+    from companion.replay.synthetic import RACETRACK_MISSION
+
+    # Two 120 m straights and two R = 40 m half circles, joined by 5 m curvature blends; the
+    # path starts at the start of the first straight, in the blend from the last arc.
+    track = parse_mission(RACETRACK_MISSION, "<racetrack>").path
+    assert track.max_abs_curvature(20.0, 100.0) < 1e-9  # inside the first straight
+    assert track.max_abs_curvature(20.0, 140.0) == pytest.approx(1 / 40.0, rel=1e-3)  # into the arc
+    assert track.max_abs_curvature(140.0, 20.0) == pytest.approx(1 / 40.0, rel=1e-3)  # either order
+    across = track.max_abs_curvature(track.length_m - 5.0, track.length_m + 20.0)  # across s = 0
+    assert 1e-3 < across <= 1 / 40.0 + 1e-6
+    assert track.max_abs_curvature(0.0, 3.0 * track.length_m) == pytest.approx(1 / 40.0, rel=1e-3)
+
+
+def test_largest_curvature_on_a_circle_of_radius_20_is_one_twentieth(circle):
+    assert circle.max_abs_curvature(0.5, 2.0) == pytest.approx(1.0 / 20.0, rel=1e-6)
+    assert circle.max_abs_curvature(-10.0, 1e6) == pytest.approx(1.0 / 20.0, rel=1e-6)  # a whole lap
+    line = waypoint_path([(0.0, 0.0), (100.0, 0.0)])
+    assert line.max_abs_curvature(-5.0, 200.0) < 1e-9  # open path: clamped to its ends

@@ -137,3 +137,27 @@ def test_no_reoptimisation_while_hovering():
     assert not out.reoptimised and math.isfinite(out.a_cmd_m_s2)
     out = law.step(0.02, VehicleState(0.0, 1.0, 0.0, 5.0))
     assert out.reoptimised
+
+
+def test_search_is_skipped_on_a_straight_reach_and_says_constant_l1(monkeypatch):
+    line = waypoint_path([(0.0, 0.0), (400.0, 0.0)])
+    params = GuidanceParams(l1_m=10.0)
+    opt = GainOptimiser(line, params)
+
+    def no_rollouts(*args, **kwargs):
+        raise AssertionError("the search rolled out candidates on a straight line")
+
+    monkeypatch.setattr(opt, "_rollout_cost", no_rollouts)
+    k1, k2, window = opt.optimise(50.0, 1.0, 0.1, 5.0, 50.0, 60.0, warm_ratio=3.0)
+    assert (k1, k2, window) == (params.k1_max, 0.0, pytest.approx(2 * 10.0 / 5.0))
+
+
+def test_search_runs_where_the_rollouts_can_reach_a_bend(monkeypatch):
+    # 100 m straight then a bend: from s = 50 a 4 s window reaches past s = 100.
+    bend = waypoint_path([(0.0, 0.0), (100.0, 0.0), (130.0, 30.0), (130.0, 100.0)])
+    opt = GainOptimiser(bend, GuidanceParams(l1_m=10.0))
+    called = []
+    real = opt._rollout_cost
+    monkeypatch.setattr(opt, "_rollout_cost", lambda *a, **k: (called.append(1), real(*a, **k))[1])
+    opt.optimise(50.0, 0.0, 0.0, 5.0, 50.0, 60.0)
+    assert called
