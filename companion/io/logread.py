@@ -42,6 +42,8 @@ import operator
 import os
 import re
 import struct
+import sys
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
 from collections import namedtuple
@@ -183,10 +185,15 @@ class _LightDecoder:
         tips = [tip for tip, _ in self.plan]
         self._scalar_getter = operator.itemgetter(*tips) if scalar and len(tips) > 1 else None
         self._new = tuple.__new__
+        self._array_plan = _float_array_plan(cls) if sys.byteorder == "little" else None
+        if self._array_plan is not None:
+            self.head = struct.Struct(self._array_plan[0])
 
     def decode(self, payload: bytes):
         if len(payload) < self.size:
             payload = payload + bytes(self.size - len(payload))
+        if self._array_plan is not None:
+            return self._decode_with_arrays(payload)
         t = self.unpacker.unpack_from(payload)
         if self._scalar_getter is not None:
             return self._new(self.tuple_cls, self._scalar_getter(t))
@@ -200,6 +207,59 @@ class _LightDecoder:
             else:
                 values.append(list(t[tip:tip + length]))
         return self.tuple_cls(*values)
+
+
+    def _decode_with_arrays(self, payload: bytes):
+        """Messages with long float arrays (DEBUG_FLOAT_ARRAY's 58 floats): those come as
+        ``array('f')`` read straight from the bytes, the other fields as usual."""
+        t = self.head.unpack_from(payload)
+        values = []
+        for tip, offset, count in self._array_plan[1]:
+            if count:  # a long float array, by byte offset
+                field = array("f")
+                field.frombytes(payload[offset:offset + 4 * count])
+                values.append(field)
+                continue
+            field = t[tip]
+            if isinstance(field, bytes):
+                values.append(field.split(b"\x00", 1)[0].decode("ascii", errors="replace"))
+            elif offset:  # a short array
+                values.append(list(t[tip:tip + offset]))
+            else:
+                values.append(field)
+        return self.tuple_cls(*values)
+
+
+#: Float arrays at least this long decode to ``array('f')`` (a list of Python floats costs more
+#: to build than the arrays are long: DEBUG_FLOAT_ARRAY carries 58).
+LONG_FLOAT_ARRAY = 8
+
+
+def _float_array_plan(cls):
+    """For a message with long float arrays: the struct format of its other fields (the arrays
+    skipped as pad bytes) and, in field order, ``(tip, short_length, 0)`` of each field in that
+    struct's tuple or ``(0, byte_offset, count)`` of each long float array. None otherwise."""
+    tokens = re.findall(r"(\d*)([a-zA-Z?])", cls.unpacker.format.lstrip("<=!>@"))
+    if len(tokens) != len(cls.orders) or not any(
+            code == "f" and int(num or 1) >= LONG_FLOAT_ARRAY for num, code in tokens):
+        return None
+    head = "<"
+    offset = 0
+    tip = 0
+    wire = []  # per wire position: (tip, short_length, 0) or (0, byte_offset, count)
+    for num, code in tokens:
+        count = int(num or 1)
+        size = struct.calcsize("<" + num + code)
+        if code == "f" and count >= LONG_FLOAT_ARRAY:
+            head += f"{size}x"
+            wire.append((0, offset, count))
+        else:
+            head += num + code
+            values = 1 if code == "s" else count
+            wire.append((tip, count if (count > 1 and code != "s") else 0, 0))
+            tip += values
+        offset += size
+    return head, [wire[order] for order in cls.orders]
 
 
 _LIGHT: dict[int, _LightDecoder] = {}

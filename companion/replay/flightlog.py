@@ -234,7 +234,9 @@ def read_flight(
                     continue
                 # As recorded, float32 (an hour's log holds 180,000 rows: a list of Python floats
                 # would take five times the memory, and filling it, time).
-                row = array("f", msg.data[:N_DEBUG])
+                row = msg.data[:N_DEBUG]  # the light decoder's float arrays are array("f")
+                if type(row) is not array:
+                    row = array("f", row)
                 sender = (rec.src_system, rec.src_component)
                 # the autopilot this sender commands: its last setpoint's target, else its own
                 # system (a companion shares its vehicle's system id), else the first to send positions

@@ -42,7 +42,7 @@ import numpy as np
 from companion.errors import LogError
 from companion.io.logread import LogWarning
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
-from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
+from companion.loop.tick import PHASE_CODES, TickConfig, coast_setpoint, compute_tick
 from companion.mission import Mission, load_mission
 from companion.replay.flightlog import (
     DEBUG_INDEX,
@@ -323,6 +323,7 @@ def replay_flight(
     i_k1, i_k2 = DEBUG_INDEX["k1"], DEBUG_INDEX["k2"]
     n_coasts = len(coasts)
     isfinite = math.isfinite
+    phase_names = {float(code): phase_name(code) for code in PHASE_CODES.values()}
 
     with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
         for i, tk in enumerate(flight.ticks):
@@ -366,7 +367,7 @@ def replay_flight(
 
             logged = tk.setpoint
             if companion_log:
-                phase_logged.append(phase_name(row[i_phase]))
+                phase_logged.append(phase_names.get(row[i_phase]) or phase_name(row[i_phase]))
                 c_xtrack[i], c_a_log[i] = row[i_xtrack], row[i_a]
                 c_k1_log[i], c_k2_log[i] = row[i_k1], row[i_k2]
             else:
@@ -384,10 +385,15 @@ def replay_flight(
                 # The common case, written out (_compare_setpoints is the general one).
                 c_yr_log[i], c_vx_log[i] = logged.yaw_rate_ned_rad_s, logged.vx_ned_m_s
                 c_vy_log[i], c_vz_log[i] = logged.vy_ned_m_s, logged.vz_ned_m_s
-                c_dyaw[i] = d_yaw = _absdiff(logged.yaw_rate_ned_rad_s, sp.yaw_rate_ned_rad_s)
-                c_dvel[i] = d_vel = math.sqrt(_absdiff(logged.vx_ned_m_s, sp.vx_ned_m_s) ** 2
-                                              + _absdiff(logged.vy_ned_m_s, sp.vy_ned_m_s) ** 2
-                                              + _absdiff(logged.vz_ned_m_s, sp.vz_ned_m_s) ** 2)
+                d_yaw = abs(logged.yaw_rate_ned_rad_s - sp.yaw_rate_ned_rad_s)
+                dx = logged.vx_ned_m_s - sp.vx_ned_m_s
+                dy = logged.vy_ned_m_s - sp.vy_ned_m_s
+                dz = logged.vz_ned_m_s - sp.vz_ned_m_s
+                d_vel = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if d_yaw != d_yaw or d_vel != d_vel:  # NaN on a side: _absdiff's rule
+                    diff, _ = _compare_setpoints(logged, sp, tolerance)
+                    d_yaw, d_vel = diff["yaw_rate_diff_rad_s"], diff["vel_diff_m_s"]
+                c_dyaw[i], c_dvel[i] = d_yaw, d_vel
                 reasons = []
                 if not d_yaw <= tol_yaw:
                     reasons.append("yaw_rate")

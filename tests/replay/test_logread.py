@@ -236,9 +236,15 @@ def _same(u, v) -> bool:
     return u == v
 
 
-@pytest.mark.parametrize("source", ["copter", "mixed"])
+@pytest.mark.parametrize("source", ["copter", "mixed", "companion"])
 def test_light_decoding_gives_pymavlinks_field_values(source, tmp_path):
-    path = COPTER_LOG if source == "copter" else mixed_traffic_log().write(tmp_path / "mixed.tlog")
+    if source == "companion":  # DEBUG_FLOAT_ARRAY rows: a long float array, NaN-padded
+        from companion.replay.synthetic import write_synthetic_flight
+
+        path = tmp_path / "companion.tlog"
+        write_synthetic_flight(path, duration_s=2.0)
+    else:
+        path = COPTER_LOG if source == "copter" else mixed_traffic_log().write(tmp_path / "mixed.tlog")
     full = list(TlogReader(path))
     light = list(TlogReader(path, light=True))
     assert [r.offset for r in full] == [r.offset for r in light]
