@@ -51,9 +51,11 @@ between them, hence the corrector-aided command obeys the same bound as constant
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
+
+from companion.guidance.types import frozen_maker
 
 V_L_MAX_FACTOR = 10.0
 PARALLEL_EPS = 1e-6
@@ -80,16 +82,8 @@ class CorrectorTerms:
     corrector_used: bool
 
 
-_TERM_NAMES = tuple(f.name for f in fields(CorrectorTerms))
-
-
-def _terms(*values) -> CorrectorTerms:
-    """A :class:`CorrectorTerms` from its field values in order, filled directly (the frozen
-    dataclass's ``__init__`` sets each of its fifteen fields through ``object.__setattr__``, a
-    measurable share of a 50 Hz step); the same object in every respect."""
-    terms = object.__new__(CorrectorTerms)
-    terms.__dict__.update(zip(_TERM_NAMES, values))
-    return terms
+#: A :class:`CorrectorTerms` from its fifteen field values in order (``frozen_maker``).
+_terms = frozen_maker(CorrectorTerms)
 
 
 def corrector_point(x1_m: float, y1_m: float, vx: float, vy: float,

@@ -51,11 +51,19 @@ from companion.guidance.l1 import l1_command
 from companion.guidance.midcourse import MidcourseGuidance
 from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
 from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
-from companion.guidance.types import SCHEDULE_TOLERANCE_S, GuidanceOutput, GuidanceParams, VehicleState
+from companion.guidance.types import (
+    SCHEDULE_TOLERANCE_S,
+    GuidanceOutput,
+    GuidanceParams,
+    VehicleState,
+    frozen_maker,
+)
 
 
 # Below this ground speed the rollouts are meaningless (hovering, taking off): gains are kept.
 MIN_OPTIMISE_SPEED_M_S = 0.3
+
+_output = frozen_maker(GuidanceOutput)  # every field in order, filled at once
 
 
 class TwoPhaseGuidance:
@@ -196,13 +204,12 @@ class TwoPhaseGuidance:
             reoptimised = True
         terms = corrector_command(x, y, course, V, p.l1_m, (px, py, tx, ty),
                                   (lx, ly, ltx, lty, lk), self._k1, self._k2)
-        return GuidanceOutput(
-            a_cmd_m_s2=terms.a_cmd_m_s2, phase="close_range", crosstrack_m=crosstrack,
-            s_proj_m=s_proj, k1=self._k1, k2=self._k2, lookahead_xy_m=(lx, ly),
-            corrector_xy_m=terms.corrector_xy_m, reoptimised=reoptimised,
-            extra={"a12_m_s2": terms.a12_m_s2, "a14_m_s2": terms.a14_m_s2, "w1": terms.w1,
-                   "w2": terms.w2},
-        )
+        # GuidanceOutput(a_cmd, phase, crosstrack, s_proj, k1, k2, lookahead_xy, corrector_xy,
+        # reoptimised, extra), filled at once: the 50 Hz path
+        return _output(terms.a_cmd_m_s2, "close_range", crosstrack, s_proj, self._k1, self._k2,
+                       (lx, ly), terms.corrector_xy_m, reoptimised,
+                       {"a12_m_s2": terms.a12_m_s2, "a14_m_s2": terms.a14_m_s2, "w1": terms.w1,
+                        "w2": terms.w2})
 
     def _predictive_step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         """The close-range phase of ``method="predictive"``: the predictive law's own step."""

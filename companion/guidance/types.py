@@ -7,7 +7,7 @@ metres; angles anticlockwise from +x, radians), as in the paper. NED lives in ``
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 METHODS = ("fixed_l1", "corrector", "predictive")
 PHASES = ("midcourse", "close_range", "finished")
@@ -116,3 +116,26 @@ class GuidanceOutput:
     @property
     def finished(self) -> bool:
         return self.phase == "finished"
+
+
+def frozen_maker(cls):
+    """A constructor of the frozen dataclass ``cls`` for hot paths: it takes every field
+    positionally, in declaration order, and fills the instance's ``__dict__`` at once, where a
+    frozen dataclass's ``__init__`` calls ``object.__setattr__`` once per field (a measurable share
+    of a 50 Hz tick). It runs no ``__post_init__``, so it is only for classes without one; the
+    instance is the same in every other respect.
+    """
+    if hasattr(cls, "__post_init__"):
+        raise TypeError(f"frozen_maker: {cls.__name__} validates in __post_init__; use its constructor")
+    names = tuple(f.name for f in fields(cls))
+    new = object.__new__
+
+    def make(*values):
+        if len(values) != len(names):
+            raise TypeError(f"{cls.__name__}: expected {len(names)} values, got {len(values)}")
+        obj = new(cls)
+        obj.__dict__.update(zip(names, values))
+        return obj
+
+    return make
+

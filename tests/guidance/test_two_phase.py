@@ -161,3 +161,22 @@ def test_search_runs_where_the_rollouts_can_reach_a_bend(monkeypatch):
     monkeypatch.setattr(opt, "_rollout_cost", lambda *a, **k: (called.append(1), real(*a, **k))[1])
     opt.optimise(50.0, 0.0, 0.0, 5.0, 50.0, 60.0)
     assert called
+
+
+def test_frozen_maker_builds_the_same_object_as_the_constructor_and_refuses_validated_classes():
+    from dataclasses import FrozenInstanceError
+
+    from companion.guidance.types import GuidanceOutput, frozen_maker
+
+    make = frozen_maker(GuidanceOutput)
+    fast = make(1.5, "close_range", -0.2, 12.0, 1.0, 3.0, (1.0, 2.0), None, True, {"w1": 0.5})
+    slow = GuidanceOutput(a_cmd_m_s2=1.5, phase="close_range", crosstrack_m=-0.2, s_proj_m=12.0,
+                          k1=1.0, k2=3.0, lookahead_xy_m=(1.0, 2.0), corrector_xy_m=None,
+                          reoptimised=True, extra={"w1": 0.5})
+    assert fast == slow and type(fast) is GuidanceOutput
+    with pytest.raises(FrozenInstanceError):
+        fast.k1 = 2.0
+    with pytest.raises(TypeError):
+        make(1.5, "close_range")  # every field, in order
+    with pytest.raises(TypeError):
+        frozen_maker(GuidanceParams)  # validates in __post_init__
