@@ -57,6 +57,10 @@ from companion.sim.metrics import tracking_metrics
 ON_FINISH = ("hold", "loiter", "rtl", "land")
 
 
+#: The interpreter's thread switch interval while flying (Python's default is 5 ms).
+LOOP_SWITCH_INTERVAL_S = 0.0005
+
+
 @dataclass(frozen=True)
 class FlyOptions:
     """Everything ``companion fly`` takes besides the mission (validated on construction)."""
@@ -719,6 +723,7 @@ class FlightRunner:
         """Fly the mission. Returns the summary; raises CompanionError on refusal/abort."""
         old_term = None
         frozen = False
+        switch_interval = None
         try:
             old_term = signal.signal(signal.SIGTERM, _raise_terminate)
         except ValueError:
@@ -754,6 +759,11 @@ class FlightRunner:
             gc.collect()
             gc.freeze()
             frozen = True
+            # The loop thread hands the interpreter to the guidance worker while it waits; when
+            # the worker runs a long step (a re-optimisation) the loop must get it back within a
+            # fraction of a tick, not after the default 5 ms switch interval.
+            switch_interval = sys.getswitchinterval()
+            sys.setswitchinterval(LOOP_SWITCH_INTERVAL_S)
             self._loop(guidance, config, clock)
         except _Terminate:
             self.exit_reason = "SIGTERM"
@@ -767,6 +777,8 @@ class FlightRunner:
         finally:
             if frozen:
                 gc.unfreeze()
+            if switch_interval is not None:
+                sys.setswitchinterval(switch_interval)
             self._worker.shutdown(wait=False, cancel_futures=True)
             self.status.close()
             self.summary = self._summarise()
