@@ -84,15 +84,6 @@ class _TimedLaw:
         self.reoptimised.append(bool(out.reoptimised))
         return out
 
-    def finish_tick(self):
-        """The law's work after the command (``predictive``'s re-optimisation): counted in the
-        tick's time, since the tick's worker is busy with it until it ends."""
-        finish = getattr(self.law, "finish_tick", None)
-        if finish is not None:
-            t0 = time.perf_counter()
-            finish()
-            self.durations_s[-1] += time.perf_counter() - t0
-
 
 class _TimedOptimiser:
     """Wraps ``GainOptimiser`` to time ``optimise`` alone."""

@@ -321,7 +321,6 @@ class PredictiveGuidance:
         self._last_t: float | None = None
         self._next_reopt_t = -math.inf
         self._win: _Window | None = None
-        self._pending: tuple | None = None  # a re-optimisation due, left for finish_tick()
         self.reoptimisations = 0
 
     def start_projection_at(self, s_m: float) -> None:
@@ -466,37 +465,16 @@ class PredictiveGuidance:
         self.reoptimisations += 1
         return cost
 
-    def finish_tick(self) -> None:
-        """Run the re-optimisation the last :meth:`step` left due, if any (else nothing).
-
-        A re-optimisation (several milliseconds) does not delay the command of the tick it falls
-        on: that tick flies the current plan, and the new plan, from that tick's state, applies
-        from the next tick. The flight loop calls this once the tick's setpoint is sent, in the
-        time left before the next tick; :meth:`step` calls it first if nobody did.
-        """
-        pending, self._pending = self._pending, None
-        if pending is not None:
-            self.reoptimise(*pending)
-
     def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         p = self.params
-        self.finish_tick()  # a re-optimisation the last tick left due, before anything moves on
         if self._last_t is not None:  # advance the lag model over the last tick with the last command
             self._a_hat += (self._last_cmd - self._a_hat) * self._alpha(max(t_s - self._last_t, 0.0))
         self._last_t = t_s
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
         self._s_hint = f.s_m
         reoptimised = False
-        if self._win is None:  # the first tick needs a window and a plan before any command
+        if t_s >= self._next_reopt_t or self._win is None:
             self.reoptimise(t_s, state, f.s_m, f.crosstrack_m)
-            self._next_reopt_t = t_s + p.reopt_period_s - SCHEDULE_TOLERANCE_S
-            reoptimised = True
-        elif t_s >= self._next_reopt_t:
-            # Due: this tick's command still flies the current plan, and the re-optimisation from
-            # this tick's state waits for finish_tick() (the flight loop calls it once the
-            # setpoint is out) or for the next step, whichever comes first: the same work either
-            # way, so the commands do not depend on when it ran.
-            self._pending = (t_s, state, f.s_m, f.crosstrack_m)
             self._next_reopt_t = t_s + p.reopt_period_s - SCHEDULE_TOLERANCE_S
             reoptimised = True
         a, l_eff, gx, gy, _ = pursuit_command(

@@ -134,13 +134,6 @@ class TwoPhaseGuidance:
             self._remember_command(t_s, out.a_cmd_m_s2)
         return out
 
-    def finish_tick(self) -> None:
-        """Work this tick left for after its command (``method: predictive``'s re-optimisation,
-        see :meth:`PredictiveGuidance.finish_tick`); nothing for the paper's methods, whose gain
-        search belongs to the tick it is due on. The next :meth:`step` does it if nobody did."""
-        if self._predictive is not None:
-            self._predictive.finish_tick()
-
     # ------------------------------------------------------------------ phases
     def _midcourse_step(self, t_s: float, state: VehicleState) -> GuidanceOutput | None:
         mc = self._midcourse

@@ -567,8 +567,6 @@ class FlightRunner:
         last_result = None
         coast_since: float | None = None
         worker = self._worker
-        finish_tick = getattr(guidance, "finish_tick", None)
-        finishing = None  # its future: an error in it is raised in the loop, not lost
         prev_course = self.mission.path.start_heading_rad
         p = self.link.state.position
         if p is not None and math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) >= config.min_course_speed_m_s:
@@ -603,9 +601,6 @@ class FlightRunner:
                 age = time.monotonic() - sample.received_s
                 if self.opt.clock == "autopilot":
                     age = max(age, now - sample.time_s)
-            if finishing is not None and finishing.done():
-                finishing.result()  # raises what finish_tick raised
-                finishing = None
             result = None
             for _ in range(2):
                 fresh = False
@@ -632,11 +627,6 @@ class FlightRunner:
             if result is not None:
                 coast_since = None
                 self._send(result.setpoint)
-                if finish_tick is not None and result.output is not None:
-                    # What the guidance left for after the command (a re-optimisation that fell
-                    # on this tick): in the worker, in the rest of the period. The next step
-                    # would do it first anyway, so the commands do not depend on when it runs.
-                    finishing = worker.submit(finish_tick)
             else:
                 if coast_since is None:
                     coast_since = now

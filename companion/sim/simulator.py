@@ -131,7 +131,6 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
     outputs = []
     finished = False
     n_max = int(math.floor(t_max_s / dt + 1e-9))
-    finish_tick = getattr(law, "finish_tick", None)
     for i in range(n_max + 1):
         t = i * dt
         gx = V * math.cos(psi) + wind[0]
@@ -139,8 +138,6 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
         course = math.atan2(gy, gx) if (wind[0] or wind[1]) else psi
         ground = math.hypot(gx, gy) if (wind[0] or wind[1]) else V
         out = law.step(t, VehicleState(x, y, course, ground))
-        if finish_tick is not None:
-            finish_tick()  # as the flight loop does once the tick's setpoint is out
         if out.phase == "finished":
             finished = True
             break
