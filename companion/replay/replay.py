@@ -42,7 +42,7 @@ import numpy as np
 from companion.errors import LogError
 from companion.io.logread import LogWarning
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
-from companion.loop.tick import PHASE_CODES, TickConfig, coast_setpoint, compute_tick
+from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
 from companion.mission import Mission, load_mission
 from companion.replay.flightlog import (
     DEBUG_INDEX,
@@ -323,7 +323,6 @@ def replay_flight(
     i_k1, i_k2 = DEBUG_INDEX["k1"], DEBUG_INDEX["k2"]
     n_coasts = len(coasts)
     isfinite = math.isfinite
-    phase_names = {float(code): phase_name(code) for code in PHASE_CODES.values()}
 
     with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
         for i, tk in enumerate(flight.ticks):
@@ -367,7 +366,7 @@ def replay_flight(
 
             logged = tk.setpoint
             if companion_log:
-                phase_logged.append(phase_names.get(row[i_phase]) or phase_name(row[i_phase]))
+                phase_logged.append(phase_name(row[i_phase]))
                 c_xtrack[i], c_a_log[i] = row[i_xtrack], row[i_a]
                 c_k1_log[i], c_k2_log[i] = row[i_k1], row[i_k2]
             else:

@@ -32,7 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from companion.geometry import frames
+from companion.geometry import frames, geodetic
 from companion.io.logread import PacketEncoder
 from companion.io.state import PositionSample
 from companion.io.tlog import TlogWriter
@@ -162,8 +162,10 @@ def write_synthetic_flight(
             """The autopilot's other streams due at tick ``k`` (they only fill the log)."""
             speed = math.hypot(ve, vn)
             course_deg = math.degrees(math.atan2(ve, vn)) % 360.0
-            lat = ORIGIN_LAT_DEG + math.degrees(y / 6_378_137.0)
-            lon = ORIGIN_LON_DEG + math.degrees(x / (6_378_137.0 * math.cos(math.radians(ORIGIN_LAT_DEG))))
+            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GLOBAL_POSITION_INT"]) or \
+                    _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GPS_RAW_INT"]):
+                lat, lon, _ = (float(v) for v in geodetic.geodetic_from_enu(
+                    x, y, alt, ORIGIN_LAT_DEG, ORIGIN_LON_DEG, ORIGIN_ALT_M))
             if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GLOBAL_POSITION_INT"]):
                 tlog.write(autopilot.global_position_int_packet(boot_ms, lat, lon, ORIGIN_ALT_M + alt, alt, vn, ve,
                                                                 0.0, course_deg), at_unix_s)
