@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import Protocol
 
 METHODS = ("fixed_l1", "corrector", "predictive")
 PHASES = ("midcourse", "close_range", "finished")
@@ -116,6 +117,17 @@ class GuidanceOutput:
     @property
     def finished(self) -> bool:
         return self.phase == "finished"
+
+
+class GuidanceLaw(Protocol):
+    """What every law offers the simulator, the flight loop and replay: one ``step`` per tick.
+
+    ``step(t_s, state)`` takes the tick time (s, the loop's clock) and the vehicle's state (ENU)
+    and returns the tick's :class:`GuidanceOutput`. Deterministic: same inputs, same outputs.
+    """
+
+    def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
+        ...
 
 
 def frozen_maker(cls):

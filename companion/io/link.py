@@ -46,7 +46,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from companion.errors import LinkError
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
-from companion.io.state import PositionSample, position_problem, yaw_problem
+from companion.io.state import GlobalOrigin, PositionSample, position_problem, yaw_problem
 from companion.io.tlog import TlogWriter
 
 MAV_COMP_ID_ONBOARD_COMPUTER = 191
@@ -272,21 +272,6 @@ class LinkState:
     heartbeats: int = 0
     positions: int = 0
     global_origin: "GlobalOrigin | None" = None  # newest GPS_GLOBAL_ORIGIN (the EKF's local origin)
-
-
-@dataclass(frozen=True)
-class GlobalOrigin:
-    """The autopilot's local-frame origin as GPS_GLOBAL_ORIGIN reports it.
-
-    ``lat_deg``/``lon_deg`` are WGS-84 (the message carries degE7); ``alt_amsl_m`` is the
-    message's altitude, which both PX4 and ArduPilot give above mean sea level (mm on the wire),
-    not above the ellipsoid. ``received_s`` is the link clock at reception.
-    """
-
-    lat_deg: float
-    lon_deg: float
-    alt_amsl_m: float
-    received_s: float
 
 
 class _TlogTap:

@@ -65,3 +65,18 @@ def yaw_problem(roll, pitch, yaw) -> str | None:
         if abs(v) > 2.0 * math.pi + 1e-6:
             return "out_of_range"
     return None
+
+
+@dataclass(frozen=True)
+class GlobalOrigin:
+    """The autopilot's local-frame origin as GPS_GLOBAL_ORIGIN reports it.
+
+    ``lat_deg``/``lon_deg`` are WGS-84 (the message carries degE7); ``alt_amsl_m`` is the
+    message's altitude, which both PX4 and ArduPilot give above mean sea level (mm on the wire),
+    not above the ellipsoid. ``received_s`` is the link clock at reception.
+    """
+
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    received_s: float

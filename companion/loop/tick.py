@@ -43,6 +43,9 @@ from companion.io.setpoints import (
 )
 from companion.io.state import PositionSample
 
+#: Position older than this (s) -> hold: ``companion fly --stale-s``'s default, replay's assumption.
+DEFAULT_STALE_S = 0.3
+
 PHASE_CODES = {"midcourse": 0, "close_range": 1, "finished": 2, "hold": 3}
 PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}
 HOLD_REASON_CODES = {"": 0, "stale": 1, "no_position": 2}
@@ -86,7 +89,7 @@ class TickConfig:
     speed_m_s: float
     rate_hz: float
     altitude_m: float
-    stale_s: float = 0.3
+    stale_s: float = DEFAULT_STALE_S
     output: str = "velocity"  # "velocity" (copter, rover) or "attitude" (plane)
     max_bank_deg: float = 35.0
     min_course_speed_m_s: float = 0.5
@@ -154,11 +157,14 @@ _tick_result = frozen_maker(TickResult)
 _vehicle_state = frozen_maker(VehicleState)
 
 
-def course_from_sample(sample: PositionSample, yaw_ned_rad: float | None, prev_course_rad: float,
+def course_from_sample(sample: PositionSample | None, yaw_ned_rad: float | None, prev_course_rad: float,
                        min_speed_m_s: float) -> float:
-    """Course (ENU) from the ground velocity; yaw, then the previous course, when slow."""
-    ground_speed = math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s)
-    if ground_speed >= min_speed_m_s:
+    """Course (ENU) from the ground velocity; yaw, then the previous course, when slow (or no sample).
+
+    The one definition of this rule: the ticks, the course before the first tick and the holds
+    streamed before the path starts all use it.
+    """
+    if sample is not None and math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) >= min_speed_m_s:
         return frames.course_enu_from_vel_ned(sample.vx_ned_m_s, sample.vy_ned_m_s)
     if yaw_ned_rad is not None and math.isfinite(yaw_ned_rad):
         return frames.course_enu_from_ned(yaw_ned_rad)

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Callable, NamedTuple
 
 from companion.errors import LogError
-from companion.io.link import GlobalOrigin
+from companion.io.state import GlobalOrigin
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
 from companion.loop.tick import DEBUG_FIELDS, PHASE_CODES

@@ -40,10 +40,13 @@ from typing import Callable
 import numpy as np
 
 from companion.errors import LogError
+from companion.guidance.types import GuidanceLaw
 from companion.io.logread import LogWarning
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
-from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
+from companion.loop.driver import TickDriver, make_guidance
+from companion.loop.tick import DEFAULT_STALE_S, TickConfig
 from companion.mission import Mission, load_mission
+from companion.mission.placement import onto_autopilot_origin
 from companion.replay.flightlog import (
     DEBUG_INDEX,
     LoggedAttitude,
@@ -146,9 +149,6 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
                    "pass --mission M.yaml")
 
 
-DEFAULT_STALE_S = 0.3  # the runner's --stale-s default
-
-
 def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
                     stale_s: float = DEFAULT_STALE_S) -> TickConfig:
     """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
@@ -192,10 +192,8 @@ def flight_output(flight: LoggedFlight) -> str:
     return "attitude" if attitude > velocity else "velocity"
 
 
-def default_guidance(mission: Mission, rate_hz: float):
+def default_guidance(mission: Mission, rate_hz: float) -> GuidanceLaw:
     """A fresh guidance for the mission, built exactly as the live runner builds it."""
-    from companion.loop.runner import make_guidance
-
     return make_guidance(mission, rate_hz)
 
 
@@ -203,7 +201,7 @@ def in_flight_frame(flight: LoggedFlight, mission: Mission) -> Mission:
     """The mission in the logged flight's local frame.
 
     A geodetic mission is flown translated onto the autopilot's EKF origin (see
-    :func:`companion.loop.runner.onto_autopilot_origin`); replay applies the same translation from
+    :func:`companion.mission.placement.onto_autopilot_origin`); replay applies the same translation from
     the GPS_GLOBAL_ORIGIN recorded in the log. Local-frame missions are returned unchanged.
     """
     if mission.frame != "geodetic":
@@ -211,8 +209,6 @@ def in_flight_frame(flight: LoggedFlight, mission: Mission) -> Mission:
     if flight.origin is None:
         raise LogError(f"{flight.path}: the mission is geodetic but the log holds no GPS_GLOBAL_ORIGIN "
                        "from the autopilot; cannot place the path in the flight's local frame")
-    from companion.loop.runner import onto_autopilot_origin
-
     return onto_autopilot_origin(mission, flight.origin)[0]
 
 
@@ -252,7 +248,7 @@ def replay_flight(
     mission: Mission,
     tolerance: Tolerance = Tolerance(),
     config: TickConfig | None = None,
-    guidance_factory: Callable[[Mission, float], object] = default_guidance,
+    guidance_factory: Callable[[Mission, float], GuidanceLaw] = default_guidance,
     progress: bool | None = None,
 ) -> ReplayResult:
     """Replay the ticks of ``flight`` through a fresh guidance built from ``mission``.
@@ -276,27 +272,22 @@ def replay_flight(
     phase_logged: list[str] = []
     phase_replayed: list[str] = []
     first_divergence = None
-    # The state the live runner carries from tick to tick (see FlightRunner._loop).
-    prev_course = path.start_heading_rad
-    prev_course_cmd = None
+    # The state the live loop carries from tick to tick, with the loop's rules.
+    driver = TickDriver(guidance, config, path.start_heading_rad)
     s_hint = None
 
     coasts = flight.coasts if companion_log else []
     tol_yaw, tol_vel = tolerance.yaw_rate_rad_s, tolerance.vel_m_s
     coast_next = 0
     coast_diffs: list[dict] = []
-    last_res = None
-    runner_cmd = None  # the runner's prev_course_cmd: fresh results and coasts set it, late ones not
 
     def replay_coasts_before(row: int) -> None:
         """Replay the coasting setpoints sent after the previous row and before ``row``."""
-        nonlocal coast_next, runner_cmd, first_divergence
+        nonlocal coast_next, first_divergence
         while coast_next < len(coasts) and coasts[coast_next].after_tick < row:
             c = coasts[coast_next]
             coast_next += 1
-            sp = coast_setpoint(last_res, c.sample, c.sample_age_s, config,
-                                runner_cmd if runner_cmd is not None else math.nan)
-            runner_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)
+            sp = driver.coast(c.sample, c.sample_age_s)
             diff, reasons = _compare_setpoints(c.setpoint, sp, tolerance)
             coast_diffs.append(diff)
             if reasons and first_divergence is None:
@@ -333,19 +324,17 @@ def replay_flight(
             row = tk.debug
             if row is not None and isfinite(row[i_prev]):
                 # The loop records the course state each tick was given (it differs from the
-                # previous row's when ticks coasted in between): use it as an input.
+                # carried state when the step was late): use it as the input.
                 prev_course = row[i_prev]
                 cmd = row[i_prev_cmd]
                 prev_course_cmd = cmd if isfinite(cmd) else None
+            else:
+                prev_course, prev_course_cmd = driver.prev_course_rad, driver.prev_course_cmd_rad
             t_s = _tick_time(tk) if companion_log else tk.t_s
-            res = compute_tick(guidance, tk.tick, t_s, tk.sample, tk.sample_age_s, config,
-                               yaw_ned_rad=tk.yaw_ned_rad, prev_course_rad=prev_course,
-                               prev_course_cmd_rad=prev_course_cmd)
-            prev_course = res.course_rad
-            prev_course_cmd = res.course_cmd_rad
-            last_res = res
-            if tk.setpoint is not None:
-                runner_cmd = res.course_cmd_rad
+            res = driver.step(tk.tick, t_s, tk.sample, tk.sample_age_s, tk.yaw_ned_rad, prev_course,
+                              prev_course_cmd)
+            # A companion tick without its setpoint is a late one (recorded, not sent).
+            driver.accept(res, sent=tk.setpoint is not None or not companion_log)
             sp = res.setpoint
             out = res.output
             c_t[i] = tk.t_s
@@ -600,7 +589,7 @@ def replay_log(
     tolerance: Tolerance = Tolerance(),
     on_warning: Callable[[LogWarning], None] | None = None,
     progress: bool | None = None,
-    guidance_factory: Callable[[Mission, float], object] = default_guidance,
+    guidance_factory: Callable[[Mission, float], GuidanceLaw] = default_guidance,
     config: TickConfig | None = None,
 ) -> ReplayResult:
     """Read ``tlog``, load its mission, replay it. Raises :class:`LogError` / ``MissionError``.

@@ -5,7 +5,7 @@ records what the loop records: the autopilot's ``LOCAL_POSITION_NED`` (and ``ATT
 ``HEARTBEAT``), and per tick the companion's ``DEBUG_FLOAT_ARRAY "guidance"`` row followed by its
 ``SET_POSITION_TARGET_LOCAL_NED``, with the mission written beside the log as
 ``<tlog>.mission.yaml``. Each tick goes through :func:`companion.loop.tick.compute_tick` with the
-guidance built by :func:`companion.loop.runner.make_guidance`, as in flight. The samples handed to
+guidance built by :func:`companion.loop.driver.make_guidance`, as in flight. The samples handed to
 the guidance are rounded to float32 first, as they would be after crossing the wire.
 
 The vehicle: its horizontal velocity follows the commanded velocity through a first-order lag
@@ -26,6 +26,7 @@ closed racetrack) and is what ``companion bench perf`` reports.
 
 from __future__ import annotations
 
+import concurrent.futures
 import math
 import struct
 import tempfile
@@ -36,7 +37,8 @@ from companion.geometry import frames, geodetic
 from companion.io.logread import PacketEncoder
 from companion.io.state import PositionSample
 from companion.io.tlog import TlogWriter
-from companion.loop.tick import TickConfig, coast_setpoint, compute_tick
+from companion.loop.driver import TickDriver, make_guidance
+from companion.loop.tick import DEFAULT_STALE_S, TickConfig, TickResult
 from companion.mission import Mission, parse_mission
 
 SAMPLE_AGE_S = 0.004  # how long before the tick the newest sample arrived
@@ -92,6 +94,20 @@ def _float32(*values: float) -> tuple[float, ...]:
         struct.unpack("<f", struct.pack("<f", v))[0] for v in values)
 
 
+class _SlowStep:
+    """A finished step that reports itself done only after ``waits`` waits (a slow step in flight)."""
+
+    def __init__(self, result: TickResult, waits: int):
+        self._result = result
+        self._waits = waits
+
+    def result(self, timeout: float | None = None) -> TickResult:
+        if self._waits > 0:
+            self._waits -= 1
+            raise concurrent.futures.TimeoutError
+        return self._result
+
+
 def write_synthetic_flight(
     tlog_path: str | Path,
     mission: Mission | str = RACETRACK_MISSION,
@@ -101,7 +117,7 @@ def write_synthetic_flight(
     vehicle_lag_s: float = 0.2,
     output: str = "velocity",
     dropout_s: tuple[float, float] | None = None,
-    stale_s: float = 0.3,
+    stale_s: float = DEFAULT_STALE_S,
     coast_ticks: int = 0,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
@@ -127,8 +143,6 @@ def write_synthetic_flight(
     -------
     dict with ``ticks``, ``records`` and ``generate_s``.
     """
-    from companion.loop.runner import make_guidance
-
     started = time.perf_counter()
     if isinstance(mission, str):
         mission = parse_mission(mission, "<synthetic>")
@@ -146,15 +160,16 @@ def write_synthetic_flight(
     x, y = x0 + start_offset_m[0], y0 + start_offset_m[1]
     ve, vn = mission.speed_m_s * math.cos(heading), mission.speed_m_s * math.sin(heading)
     alt = mission.altitude_m
-    prev_course = heading
-    prev_course_cmd = None
+    driver = TickDriver(guidance, config, heading)
     n_ticks = int(round(duration_s * rate_hz))
     alpha = 1.0 - math.exp(-dt / vehicle_lag_s) if vehicle_lag_s > 0 else 1.0
 
-    guidance_ticks = 0
-    pending = None  # a result whose (simulated) slow step outlives its tick
-    pending_ticks = 0
-    last_result = None
+
+    def slow_steps(call):
+        """Run the step now; a re-optimisation (with ``coast_ticks``) is held back that many ticks."""
+        res = call()
+        slow = coast_ticks and res.output is not None and res.output.reoptimised
+        return _SlowStep(res, coast_ticks if slow else 0)
 
     with TlogWriter(tlog_path, min_free_bytes=0) as tlog:
 
@@ -204,35 +219,11 @@ def write_synthetic_flight(
                 yaw_seen = _float32(yaw_ned)[0]
             t_s = t_grid + TICK_JITTER_S * math.sin(0.7 * k)
             age = SAMPLE_AGE_S + (t_grid - sample_t)
-            sp = None
-            if pending is not None:  # a slow step is still "running"
-                pending_ticks -= 1
-                if pending_ticks > 0:
-                    sp = coast_setpoint(last_result, sample, age, config,
-                                        prev_course_cmd if prev_course_cmd is not None else math.nan)
-                    prev_course_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)
-                    sent_at = unix + 0.5 * dt  # after the step budget ran out
-                else:  # it finished: its row is recorded late, and this tick is computed afresh
-                    write_row(pending, unix + 10e-6)
-                    last_result, prev_course, pending = pending, pending.course_rad, None
-            if sp is None:
-                res = compute_tick(guidance, guidance_ticks, t_s, sample, age, config,
-                                   yaw_ned_rad=yaw_seen, prev_course_rad=prev_course,
-                                   prev_course_cmd_rad=prev_course_cmd)
-                guidance_ticks += 1
-                if coast_ticks and res.output is not None and res.output.reoptimised:
-                    # a re-optimisation outlives the step budget: this tick and the next coast
-                    pending, pending_ticks = res, coast_ticks
-                    sp = coast_setpoint(last_result, sample, age, config,
-                                        prev_course_cmd if prev_course_cmd is not None else math.nan)
-                    prev_course_cmd = getattr(sp, "course_cmd_enu_rad", math.nan)
-                    sent_at = unix + 0.5 * dt
-                else:
-                    # as the runner: the tick's guidance row, then its setpoint
-                    write_row(res, unix + 20e-6)
-                    last_result, prev_course, prev_course_cmd = res, res.course_rad, res.course_cmd_rad
-                    sp = res.setpoint
-                    sent_at = unix + 40e-6
+            tick_out = driver.run_tick(t_s, t_s, sample, age, yaw_seen, slow_steps, 0.0,
+                                       lambda res, sent: write_row(res, unix + (20e-6 if sent else 10e-6)))
+            sp = tick_out.setpoint
+            # as the runner: the tick's guidance row, then its setpoint; a coast after the budget
+            sent_at = unix + 40e-6 if tick_out.result is not None else unix + 0.5 * dt
             if output == "attitude":
                 tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), sent_at)
                 # coordinated turn at the commanded bank (NED roll: right wing down positive)

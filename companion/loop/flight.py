@@ -1,0 +1,214 @@
+"""The flight loop: fixed-rate ticks on the newest position, a guidance worker, the tick driver.
+
+Every tick (``docs/flying.md``): service the link, check the heartbeat (lost -> stop, exit) and
+the mode (the vehicle left OFFBOARD/GUIDED -> stop commanding at once, never switch back unless
+``--resume``), then :meth:`companion.loop.driver.TickDriver.run_tick` on the newest
+LOCAL_POSITION_NED: the guidance steps in a worker thread, and a step slower than half a tick
+does not freeze the setpoint stream (that tick coasts). Each finished step is recorded in the tlog
+(``DEBUG_FLOAT_ARRAY "guidance"``) and in the :class:`FlightRecord`.
+
+Clocks: ``wall`` ticks on the monotonic clock; ``autopilot`` (:class:`AutopilotClock`) on the
+autopilot's ``time_boot_ms`` (a simulator running faster than real time).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+from companion.errors import FlightAborted
+from companion.guidance.types import GuidanceLaw
+from companion.io.link import MavLink
+from companion.io.state import PositionSample
+from companion.io.tlog import TlogWriter
+from companion.loop.driver import TickDriver
+from companion.loop.scheduler import Clock, FixedRateScheduler
+from companion.loop.session import LinkSession
+from companion.loop.tick import DEBUG_FIELDS, TickConfig, TickResult, course_from_sample
+
+_I_SETPOINT_SENT = DEBUG_FIELDS.index("setpoint_sent")
+
+
+@dataclass
+class FlightRecord:
+    """Per-tick series of a flight (for metrics, plots and tests)."""
+
+    t_s: list = field(default_factory=list)
+    time_boot_ms: list = field(default_factory=list)
+    phase: list = field(default_factory=list)
+    a_cmd_m_s2: list = field(default_factory=list)
+    crosstrack_m: list = field(default_factory=list)
+    x_m: list = field(default_factory=list)
+    y_m: list = field(default_factory=list)
+    sample_age_s: list = field(default_factory=list)
+    hold: list = field(default_factory=list)
+
+    def add(self, result: TickResult) -> None:
+        """Append one finished tick."""
+        sample = result.sample
+        self.t_s.append(result.t_s)
+        self.time_boot_ms.append(sample.time_boot_ms if sample is not None else -1)
+        self.phase.append(result.phase)
+        out = result.output
+        self.a_cmd_m_s2.append(out.a_cmd_m_s2 if out is not None else 0.0)
+        self.crosstrack_m.append(out.crosstrack_m if out is not None else math.nan)
+        self.x_m.append(result.state.x_m if result.state is not None else math.nan)
+        self.y_m.append(result.state.y_m if result.state is not None else math.nan)
+        self.sample_age_s.append(result.sample_age_s)
+        self.hold.append(result.is_hold)
+
+
+class AutopilotClock:
+    """Time = the newest ``time_boot_ms`` from the autopilot; waiting services the link.
+
+    If the autopilot's time stops advancing (everything silent), ``wait_until`` returns after
+    ``wall_step_s`` of wall time so that the loop still runs its failsafe checks.
+    """
+
+    def __init__(self, link: MavLink, idle: Callable[[], None], wall_step_s: float = 0.1):
+        self.link = link
+        self.idle = idle
+        self.wall_step_s = wall_step_s
+
+    def now(self) -> float:
+        t = self.link.state.autopilot_time_s
+        return t if math.isfinite(t) else 0.0
+
+    def wait_until(self, t_s: float) -> None:
+        wall_end = time.monotonic() + self.wall_step_s
+        while self.now() < t_s and time.monotonic() < wall_end:
+            self.link.poll(0.005)
+            self.idle()
+
+
+class FlightLoop:
+    """The fixed-rate loop of one flight, from the first tick to the end of the path.
+
+    Call :meth:`run` (returns the exit reason: ``"finished"`` or ``"max duration"``; raises on
+    a lost link or a pilot override), then :meth:`close`.
+    """
+
+    def __init__(self, session: LinkSession, guidance: GuidanceLaw, config: TickConfig, clock: Clock,
+                 target_mode: str, start_heading_rad: float, tlog: TlogWriter, record: FlightRecord):
+        self.s = session
+        self.config = config
+        self.clock = clock
+        self.target_mode = target_mode
+        self.tlog = tlog
+        self.record = record
+        self.hold_ticks = 0
+        self.scheduler: FixedRateScheduler | None = None
+        self._in_hold = False
+        state = session.link.state
+        course = course_from_sample(state.position, state.yaw_ned_rad, start_heading_rad,
+                                    config.min_course_speed_m_s)
+        self.driver = TickDriver(guidance, config, course, session.opt.max_coast_turn_s)
+        # The guidance steps in a worker thread; a step slower than this budget (wall seconds)
+        # does not freeze the setpoint stream: that tick coasts (see tick.coast_setpoint).
+        self._step_budget_s = 0.5 / session.opt.rate_hz
+        self._worker = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="guidance")
+
+    def close(self) -> None:
+        self._worker.shutdown(wait=False, cancel_futures=True)
+
+    def _new_scheduler(self) -> FixedRateScheduler:
+        self.scheduler = FixedRateScheduler(self.s.opt.rate_hz, self.clock)
+        return self.scheduler
+
+    def _sample(self, now_s: float) -> tuple[PositionSample | None, float]:
+        """The newest position and its age (wall clock; with the autopilot clock, the older)."""
+        sample = self.s.link.state.position
+        if sample is None:
+            return None, math.inf
+        age = time.monotonic() - sample.received_s
+        if self.s.opt.clock == "autopilot":
+            age = max(age, now_s - sample.time_s)
+        return sample, age
+
+    def run(self) -> str:
+        s, opt, clock = self.s, self.s.opt, self.clock
+        sched = self._new_scheduler()
+        t_first: float | None = None
+        while True:
+            sched.wait_next()
+            s.link.poll(0.0)
+            s.idle()
+            s.check_link()
+            if not s.link.in_mode(self.target_mode):
+                self._pilot_override()
+                sched = self._new_scheduler()
+                continue
+            now = clock.now()
+            if t_first is None:
+                t_first = now
+            t_s = now - t_first
+            sample, age = self._sample(now)
+            out = self.driver.run_tick(t_s, now, sample, age, s.link.state.yaw_ned_rad, self._worker.submit,
+                                       self._step_budget_s, self._after_guidance)
+            s.send(out.setpoint)
+            self.tlog.flush()
+            sched.done()
+            if out.result is None:
+                continue
+            self._live(out.result, sched)
+            if out.result.phase == "finished":
+                return "finished"
+            if opt.max_duration_s is not None and t_s >= opt.max_duration_s:
+                s.event(f"stopping after --max-duration-s {opt.max_duration_s:g}")
+                return "max duration"
+
+    def _pilot_override(self) -> None:
+        """The vehicle left the flight mode: abort, or (``--resume``) wait for the pilot to return."""
+        s, mode = self.s, self.target_mode
+        s.event(f"vehicle left {mode.upper()} (custom_mode {s.link.state.custom_mode}): pilot or "
+                "failsafe override; stopped commanding")
+        if not s.opt.resume:
+            raise FlightAborted(
+                f"pilot override: the vehicle left {mode.upper()}; not switching back "
+                "(use --resume to continue when the pilot returns control)")
+        s.event(f"--resume: waiting for the pilot to select {mode.upper()} again")
+        while not s.link.in_mode(mode):
+            s.check_link()
+            s.pump(0.05)
+        s.event(f"back in {mode.upper()}: resuming")
+
+    def _after_guidance(self, result: TickResult, sent: bool = True) -> None:
+        """Record a finished compute_tick (in the tlog and the flight record); report holds.
+
+        ``sent`` is False for a result that arrived after its tick had coasted: its setpoint is
+        not sent (the current tick is computed afresh) and its record says so (field 26).
+        """
+        sample = result.sample
+        time_usec = sample.time_boot_ms * 1000 if sample is not None else 0
+        row = list(result.debug)
+        row[_I_SETPOINT_SENT] = 1.0 if sent else 0.0
+        self.s.link.record_debug("guidance", result.tick, time_usec, row)
+        self.record.add(result)
+        if result.is_hold:
+            self.hold_ticks += 1
+        if result.is_hold != self._in_hold:
+            self._in_hold = result.is_hold
+            if result.is_hold:
+                self.s.event(f"HOLD: position {result.hold_reason} (age {result.sample_age_s:.2f} s > "
+                             f"--stale-s {self.s.opt.stale_s:g}); zero velocity, zero yaw rate")
+            else:
+                self.s.event("position fresh again: guidance resumed")
+
+    def _live(self, result: TickResult, sched: FixedRateScheduler) -> None:
+        link = self.s.link
+        out = result.output
+        xt = f"{out.crosstrack_m:+6.2f}" if out is not None else "   n/a"
+        a = f"{out.a_cmd_m_s2:+6.2f}" if out is not None else "  0.00"
+        rej: int | str = sum(link.rejected.values())
+        if rej:  # the split by reason, largest first (bad_data 12, nan 3, ...)
+            split = sorted(((n, k) for k, n in link.rejected.items() if n), reverse=True)
+            rej = f"{rej} ({', '.join(f'{k} {n}' for n, k in split)})"
+        hb_age = link.link_age_s()
+        state = "link ok" if hb_age < 1.5 else f"link quiet {hb_age:.1f} s"
+        self.s.status.live(
+            f"t {result.t_s:6.1f} s  {result.phase:<11} xtrack {xt} m  a_cmd {a} m/s2  "
+            f"{sched.current_rate_hz():5.1f} Hz  {state}  rejected {rej}"
+        )

@@ -1,0 +1,156 @@
+"""The companion's side of one link to one autopilot while a flight is set up and flown.
+
+:class:`LinkSession` holds what every step of a flight needs: the link, the options, the operator
+status, our heartbeat and (PX4, while arming and climbing) the stream of hold setpoints that keeps
+OFFBOARD alive. The per-autopilot steps (:mod:`companion.loop.profiles`), the flight loop
+(:mod:`companion.loop.flight`) and the runner (:mod:`companion.loop.runner`) all act through it.
+
+Operator events go to the ``companion`` logger (standard :mod:`logging`) and to :class:`Status`,
+the stderr line a user watches.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import time
+from typing import TYPE_CHECKING, TextIO
+
+from companion.errors import FlightAborted, LinkError
+from companion.io.link import MAV_RESULT_NAMES, MavLink
+from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
+from companion.loop.tick import TickConfig, course_from_sample, hold_for
+
+if TYPE_CHECKING:
+    from companion.loop.runner import FlyOptions
+
+log = logging.getLogger("companion")
+
+
+class Status:
+    """Live status: one rewritten line on a terminal, plain lines (1 per second) otherwise."""
+
+    def __init__(self, stream: TextIO | None = None, quiet: bool = False):
+        self.stream = stream if stream is not None else sys.stderr
+        self.quiet = quiet
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._last_line_s = -math.inf
+        self._dirty = False
+
+    def event(self, text: str) -> None:
+        if self.quiet:
+            return
+        if self._dirty:
+            self.stream.write("\n")
+            self._dirty = False
+        self.stream.write(f"companion: {text}\n")
+        self.stream.flush()
+
+    def live(self, text: str) -> None:
+        if self.quiet:
+            return
+        now = time.monotonic()
+        if self.tty:
+            if now - self._last_line_s >= 0.1:
+                self.stream.write("\r\x1b[K" + text)
+                self.stream.flush()
+                self._dirty = True
+                self._last_line_s = now
+        elif now - self._last_line_s >= 1.0:
+            self.stream.write(text + "\n")
+            self.stream.flush()
+            self._last_line_s = now
+
+    def close(self) -> None:
+        if self._dirty and not self.quiet:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._dirty = False
+
+
+def result_text(result: int | None) -> str:
+    """A COMMAND_ACK result in words (``None``: no ACK came)."""
+    return "no COMMAND_ACK" if result is None else MAV_RESULT_NAMES.get(result, str(result))
+
+
+class LinkSession:
+    """The link, the options and the operator's view of one flight (see the module docstring)."""
+
+    def __init__(self, link: MavLink, options: FlyOptions, status: Status, events: list[str]):
+        self.link = link
+        self.opt = options
+        self.status = status
+        self.events = events
+        self.setpoints_sent = 0
+        # PX4 leaves OFFBOARD when setpoints stop: while arming/climbing, idle() streams holds.
+        self.keepalive_config: TickConfig | None = None
+        self._last_keepalive_s = -math.inf
+
+    def event(self, text: str) -> None:
+        """An operator event: the log, the event list and the status line."""
+        log.info(text)
+        self.events.append(text)
+        self.status.event(text)
+
+    def idle(self) -> None:
+        """Keep our heartbeat going while waiting for anything (and PX4's setpoint stream)."""
+        self.link.heartbeat_if_due()
+        if self.keepalive_config is not None:
+            now = time.monotonic()
+            if now - self._last_keepalive_s >= 1.0 / self.opt.rate_hz:
+                self._last_keepalive_s = now
+                self.hold_now(self.keepalive_config)
+
+    def pump(self, duration_s: float) -> None:
+        """Service the link (and :meth:`idle`) for ``duration_s``."""
+        end = time.monotonic() + duration_s
+        while True:
+            self.idle()
+            remaining = end - time.monotonic()
+            if remaining <= 0:
+                return
+            self.link.poll(min(0.02, remaining))
+
+    def check_link(self) -> None:
+        age = self.link.link_age_s()
+        if not (age <= self.opt.link_timeout_s):
+            raise LinkError(
+                f"{self.opt.connect}: heartbeat lost for {age:.1f} s (--link-timeout-s "
+                f"{self.opt.link_timeout_s:g}); stopped sending setpoints"
+            )
+
+    def check_mode(self, target_mode: str) -> None:
+        """Before the loop (climb, takeoff): a mode change by the pilot ends the flight."""
+        if not self.link.in_mode(target_mode):
+            self.keepalive_config = None
+            raise FlightAborted(f"pilot override: the vehicle left {target_mode.upper()} before the "
+                                "path started; not switching back")
+
+    def wait_altitude(self, alt_m: float, mode: str, timeout_s: float, poll_s: float, what: str) -> None:
+        """Wait until the vehicle is at 90 % of ``alt_m``, in ``mode`` and linked; else abort."""
+        end = time.monotonic() + timeout_s
+        while True:
+            p = self.link.state.position
+            if p is not None and -p.z_ned_m >= 0.9 * alt_m:
+                return
+            if time.monotonic() > end:
+                raise FlightAborted(f"{what} {0.9 * alt_m:.1f} m within {timeout_s:g} s")
+            self.check_mode(mode)
+            self.check_link()
+            self.pump(poll_s)
+
+    def statustext_since(self, n0: int) -> list[str]:
+        return [t for _, t in self.link.state.statustext[n0:]]
+
+    def hold_now(self, config: TickConfig) -> None:
+        """Send one hold setpoint (zero velocity, altitude held) for the pre-stream."""
+        p = self.link.state.position
+        fresh = p is not None and time.monotonic() - p.received_s <= self.opt.stale_s
+        alt = -p.z_ned_m if p is not None else math.nan
+        course = course_from_sample(p, self.link.state.yaw_ned_rad, 0.0, config.min_course_speed_m_s)
+        self.send(hold_for(config, alt, fresh, course))
+
+    def send(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
+        self.link.send_setpoint(sp)
+        self.setpoints_sent += 1
