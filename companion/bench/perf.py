@@ -202,26 +202,19 @@ def _mission_file() -> Path:
 
 
 def _start_mock(mission, port: int, extra: list[str] | None = None):
-    from companion.cli.demo import MockProcess
-    from companion.geometry import frames
+    from companion.io.mock_process import MockProcess, mock_start_args
 
-    if mission.start is not None:
-        x, y, heading = mission.start.x_m, mission.start.y_m, mission.start.heading_rad
-    else:
-        (x, y), heading = mission.path.start_xy_m, mission.path.start_heading_rad
-    yaw_deg = math.degrees(frames.yaw_ned_from_enu(heading))
     mock = MockProcess(["--autopilot", "px4", "--vehicle", "copter", "--link", f"udpout:127.0.0.1:{port}",
-                        f"--start-ned={y:.3f},{x:.3f}", "--start-alt-m", "15", f"--start-yaw-deg={yaw_deg:.3f}",
-                        "--start-airborne", "--quiet", *(extra or [])])
+                        *mock_start_args(mission, 15.0), "--quiet", *(extra or [])])
     mock.start()
     return mock
 
 
 def measure_loop_latency(rate_hz: float, duration_s: float) -> dict:
     """Datagram readable -> setpoint sent, for every LOCAL_POSITION_NED the mock streams."""
-    from companion.cli.demo import free_udp_port
+    from companion.io.mock_process import free_udp_port
     from companion.io.link import MSG_ID_LOCAL_POSITION_NED, MavLink
-    from companion.loop.runner import make_guidance
+    from companion.loop.driver import make_guidance
     from companion.loop.tick import TickConfig, compute_tick
     from companion.mission import load_mission
 
@@ -288,7 +281,7 @@ def _proc_cpu_s(pid: int) -> float | None:
 
 def measure_fly_cpu(duration_s: float, warmup_s: float) -> dict:
     """``companion fly`` at 50 Hz against sitl_mock: CPU share of its flight loop and peak RSS."""
-    from companion.cli.demo import free_udp_port
+    from companion.io.mock_process import free_udp_port
     from companion.mission import load_mission
 
     mission_path = _mission_file()

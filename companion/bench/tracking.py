@@ -223,7 +223,7 @@ def make_law(law: str, setting: float, sc: Scenario, model: ModelSpec):
 # ----------------------------------------------------------------------------- one run
 def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
     """Signed distance to the closest path point along a trajectory (projection kept continuous)."""
-    from companion.guidance.baselines._frame import path_frame
+    from companion.guidance.path_frame import path_frame
 
     d = np.empty(x_m.size)
     s = None

@@ -9,16 +9,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import socket
-import subprocess
-import sys
-import threading
 import time
 from pathlib import Path
 
 from companion.cli.fly import add_flight_options, format_loop_line, format_metrics_table, json_safe, options_from_args
-from companion.errors import CompanionError, LinkError
+from companion.errors import CompanionError
+from companion.io.mock_process import MockProcess, free_udp_port, mock_start_args
 
 DEFAULT_MISSION = "missions/paper_far_start.yaml"
 
@@ -42,14 +38,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run, clock="autopilot")
 
 
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
 def find_mission(path: str | None) -> Path:
     """The mission file: as given, else ``missions/paper_far_start.yaml`` here or in the source tree."""
     if path:
@@ -61,66 +49,12 @@ def find_mission(path: str | None) -> Path:
     return tree if tree.exists() else here
 
 
-class MockProcess:
-    """``python -m sitl_mock ...`` as a child process; ``ready`` when it prints ``sitl_mock ready``."""
-
-    def __init__(self, args: list[str]):
-        self.cmd = [sys.executable, "-m", "sitl_mock", *args]
-        self.proc: subprocess.Popen | None = None
-        self.lines: list[str] = []
-        self._ready = threading.Event()
-
-    def start(self, timeout_s: float = 30.0) -> None:
-        env = dict(os.environ)
-        src_root = str(Path(__file__).resolve().parents[2])
-        env["PYTHONPATH"] = src_root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        try:
-            self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                         text=True, env=env)
-        except OSError as err:
-            raise LinkError(f"cannot start the mock autopilot ({err})") from err
-        threading.Thread(target=self._read, daemon=True).start()
-        end = time.monotonic() + timeout_s
-        while not self._ready.wait(0.05):
-            if self.proc.poll() is not None or time.monotonic() > end:
-                tail = " | ".join(self.lines[-5:]) or "no output"
-                self.stop()
-                raise LinkError(f"the mock autopilot did not start ({' '.join(self.cmd[1:])}): {tail}")
-
-    def _read(self) -> None:
-        assert self.proc is not None and self.proc.stdout is not None
-        for line in self.proc.stdout:
-            line = line.rstrip("\n")
-            self.lines.append(line)
-            del self.lines[:-200]
-            if line.startswith("sitl_mock ready"):
-                self._ready.set()
-
-    def stop(self) -> None:
-        if self.proc is None or self.proc.poll() is not None:
-            return
-        self.proc.terminate()
-        try:
-            self.proc.wait(5.0)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait(5.0)
-
-
 def mock_args(mission, args, port: int) -> list[str]:
-    from companion.geometry import frames
-
-    if mission.start is not None:
-        x, y, heading = mission.start.x_m, mission.start.y_m, mission.start.heading_rad
-    else:
-        (x, y), heading = mission.path.start_xy_m, mission.path.start_heading_rad
-    yaw_deg = math.degrees(frames.yaw_ned_from_enu(heading))
     out = [
         "--autopilot", args.autopilot, "--vehicle", args.vehicle,
         "--link", f"udpout:127.0.0.1:{port}",
         "--speedup", f"{args.speedup:g}",
-        f"--start-ned={y:.3f},{x:.3f}", "--start-alt-m", f"{mission.altitude_m:g}",
-        f"--start-yaw-deg={yaw_deg:.3f}", "--start-airborne",
+        *mock_start_args(mission, mission.altitude_m),
         "--tau-vel-s", f"{args.tau_vel_s:g}", "--a-max-m-s2", f"{args.a_max_m_s2:g}",
         "--seed", str(args.seed), "--quiet",
         # Keep the real autopilots' wall-clock margins: a pause of w wall seconds in the companion

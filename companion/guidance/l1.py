@@ -19,10 +19,7 @@ from __future__ import annotations
 
 import math
 
-
-def wrap_pi(angle_rad: float) -> float:
-    """``angle_rad`` wrapped into ``[-pi, pi)``."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+from companion.geometry.frames import wrap_pi
 
 
 def los_angle_rad(x_m: float, y_m: float, course_rad: float, tx_m: float, ty_m: float) -> float:

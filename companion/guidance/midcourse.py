@@ -41,7 +41,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.l1 import l1_command, wrap_pi
+from companion.geometry.frames import wrap_pi
+from companion.guidance.l1 import l1_command
 
 TWO_PI = 2.0 * math.pi
 

@@ -54,7 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from companion.guidance.baselines._frame import is_finished, path_frame
+from companion.guidance.path_frame import is_finished, path_frame
 from companion.guidance.types import SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)

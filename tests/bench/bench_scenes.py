@@ -4,7 +4,7 @@ They implement the documented Path contract (``point``, ``tangent``, ``curvature
 ``heading_rad``, ``project``, ``length_m``, ``closed``, ``start_xy_m``,
 ``start_heading_rad``) with closed-form geometry, so the laws' commands can be checked against
 hand arithmetic independently of ``companion.geometry.paths``. They have no ``lookahead``,
-so the laws' own forward search (``baselines._frame.lookahead_s``) is exercised too.
+so the laws' own forward search (``companion.guidance.path_frame.lookahead_s``) is exercised too.
 """
 
 from __future__ import annotations

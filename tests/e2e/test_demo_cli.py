@@ -12,7 +12,7 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
-from companion.cli.demo import MockProcess, free_udp_port
+from companion.io.mock_process import MockProcess, free_udp_port
 from companion.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]

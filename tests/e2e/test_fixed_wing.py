@@ -7,7 +7,7 @@ import math
 import numpy as np
 from pymavlink import mavutil
 
-from companion.cli.demo import MockProcess, free_udp_port
+from companion.io.mock_process import MockProcess, free_udp_port
 from companion.loop.runner import FlightRunner, FlyOptions, Status
 from companion.mission import parse_mission
 

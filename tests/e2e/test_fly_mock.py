@@ -41,7 +41,7 @@ import math
 import pytest
 from pymavlink import mavutil
 
-from companion.cli.demo import MockProcess, free_udp_port
+from companion.io.mock_process import MockProcess, free_udp_port
 from companion.errors import FlightAborted
 from companion.geometry import frames
 from companion.guidance.types import VehicleState

@@ -20,7 +20,7 @@ import sys
 import numpy as np
 import pytest
 
-from companion.cli.demo import MockProcess, free_udp_port
+from companion.io.mock_process import MockProcess, free_udp_port
 from companion.errors import LinkError
 from companion.loop.runner import FlightRunner, FlyOptions, Status
 from companion.mission import parse_mission

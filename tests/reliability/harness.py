@@ -18,7 +18,7 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
-from companion.cli.demo import free_udp_port
+from companion.io.mock_process import free_udp_port
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from companion.cli.main import main
-from companion.cli.demo import free_udp_port
+from companion.io.mock_process import free_udp_port
 from replay_tlogtools import iter_frames, refresh_crc
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -26,7 +26,7 @@ capture limit and the cross-track integrator act on the capture part only; on a 
 the chord is the tangent and this is ArduPilot's ``update_waypoint`` term for term. When the
 vehicle is farther than L1 from the path there is no L1 point; ArduPilot then flies the clamped
 capture angle (``sin Nu1 = +-0.7071``), and so do we. Past the end of an open path the path is
-continued straight along its end tangent (``baselines._frame.goal_point``).
+continued straight along its end tangent (``companion.guidance.path_frame.goal_point``).
 
 Cross-track integrator (``NAVL1_XTRACK_I``, default 0.02): while the capture angle is within
 5 deg, ``I += Nu1 * XTRACK_I * dt`` with I clamped to +-0.1 rad, and ``Nu1 += I``. The time step
@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.baselines._frame import goal_point, is_finished, path_frame, wrap_pi
+from companion.guidance.path_frame import goal_point, is_finished, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 CAPTURE_LIMIT_RAD = math.pi / 4.0  # ArduPilot: sine_Nu1 constrained to +-0.7071

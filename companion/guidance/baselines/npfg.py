@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.baselines._frame import is_finished, path_frame
+from companion.guidance.path_frame import is_finished, path_frame
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 EPSILON = 1.0e-4  # as PX4's NPFG::EPSILON

@@ -15,7 +15,7 @@ guidance as a relative of pure pursuit). The two differ only when the vehicle is
 ``L_d`` from the path: pure pursuit then aims at the closest path point (the goal search never
 leaves it), whereas the two-phase law runs its mid-course phase. The benchmark keeps it as the
 law a mobile-robotics user would pick, swept over ``L_d``. Past the end of an open path the goal
-is taken on the straight continuation of the end tangent (``baselines._frame.goal_point``).
+is taken on the straight continuation of the end tangent (``companion.guidance.path_frame.goal_point``).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.baselines._frame import goal_point, is_finished, path_frame, wrap_pi
+from companion.guidance.path_frame import goal_point, is_finished, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 

@@ -1,6 +1,6 @@
-"""Path-relative quantities every baseline law needs at one tick (pure maths, ENU).
+"""Path-relative quantities the laws need at one tick (pure maths, ENU).
 
-The baselines talk to a :class:`companion.geometry.paths.Path` through the documented contract
+The laws (the predictive law and the baselines) talk to a :class:`companion.geometry.paths.Path` through the documented contract
 only (``point``, ``tangent``, ``curvature``, ``project``, ``length_m``, ``closed``). This module
 collects the few derived quantities they share, so that each law file reads like its equations:
 
@@ -9,8 +9,9 @@ collects the few derived quantities they share, so that each law file reads like
 - :func:`lookahead_s`: the first arc length forward of ``s_from`` whose point lies at Euclidean
   distance ``L`` from the vehicle (the look-ahead point of L1 guidance and pure pursuit);
 - :func:`goal_point`: the same point, continuing an open path straight past its end;
-- :func:`wrap_pi` and :func:`is_finished` (an open path is finished once the projection reaches
-  its end).
+- :func:`is_finished` (an open path is finished once the projection reaches its end).
+
+Angles are wrapped by :func:`companion.geometry.frames.wrap_pi` (re-exported here for the laws).
 """
 
 from __future__ import annotations
@@ -18,13 +19,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from companion.geometry.frames import wrap_pi as wrap_pi  # re-exported for the laws
+
 #: Arc-length tolerance used to decide that the projection has reached the end of an open path.
 END_TOL_M = 1.0e-3
-
-
-def wrap_pi(angle_rad: float) -> float:
-    """Wrap an angle to [-pi, pi)."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _as_s(result) -> float:
