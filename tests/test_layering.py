@@ -1,19 +1,20 @@
-"""The maths layers stay pure, and the mock autopilot and the companion meet only on the wire."""
+"""The layers import only what docs/architecture.md allows, and the doc states what is enforced.
+
+The table of docs/architecture.md ("Packages") is the one statement of the rules: this test reads
+it, checks that it names every package of the tree, and checks every file's imports against it.
+"""
 
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-
-PURE_ALLOWED = {
-    "companion.geometry": {"numpy", "scipy", "companion.geometry"},
-    "companion.guidance": {"numpy", "scipy", "companion.geometry", "companion.guidance"},
-    "companion.sim": {"numpy", "scipy", "companion.geometry", "companion.guidance", "companion.sim"},
-}
+DOC = ROOT / "docs" / "architecture.md"
+MATHS_LAYERS = ("companion.geometry", "companion.guidance", "companion.sim")
 # Standard-library modules the pure layers must not touch: clocks, sockets, logging, files.
 FORBIDDEN_STDLIB = {"time", "socket", "logging", "os", "subprocess", "threading", "asyncio", "io"}
 
@@ -29,22 +30,84 @@ def imported_modules(path: Path) -> set[str]:
     return names
 
 
-def top_allowed(name: str, allowed: set[str]) -> bool:
-    return any(name == a or name.startswith(a + ".") for a in allowed)
+def _names(cell: str, prefix: str) -> set[str]:
+    cell = cell.strip()
+    if cell in ("–", "-", ""):
+        return set()
+    return {prefix + n.strip() for n in cell.split(",")}
 
 
-@pytest.mark.parametrize("package", sorted(PURE_ALLOWED))
-def test_maths_layers_import_only_maths(package):
-    folder = ROOT / package.replace(".", "/")
-    allowed = PURE_ALLOWED[package]
+def doc_rules() -> dict[str, tuple[set[str], set[str]]]:
+    """package -> (companion packages it may import, libraries it may import), from the doc."""
+    text = DOC.read_text(encoding="utf-8")
+    section = text[text.index("## Packages"):text.index("## Frames and names")]
+    rules = {}
+    for line in section.splitlines():
+        if not line.startswith("| `"):
+            continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        package = cells[0].strip("`")
+        # the 'what lives there' cell may contain escaped pipes: the last two cells are the rules
+        rules[package] = (_names(cells[-2], "companion."), _names(cells[-1], ""))
+    return rules
+
+
+RULES = doc_rules()
+
+
+def package_of(path: Path) -> str | None:
+    rel = path.relative_to(ROOT).with_suffix("").parts
+    if rel[0] == "sitl_mock":
+        return "sitl_mock"
+    if len(rel) == 2:  # a module directly in companion/
+        return None if rel[1] == "__init__" else ".".join(rel)
+    return ".".join(rel[:2])
+
+
+def source_files() -> list[Path]:
+    return sorted((ROOT / "companion").rglob("*.py")) + sorted((ROOT / "sitl_mock").rglob("*.py"))
+
+
+def allowed(name: str, packages: set[str]) -> bool:
+    return any(name == a or name.startswith(a + ".") for a in packages)
+
+
+def test_the_doc_names_every_package_of_the_tree():
+    found = {package_of(p) for p in source_files()} - {None}
+    assert found == set(RULES), f"in the tree, not in the doc: {sorted(found - set(RULES))}; " \
+                                f"in the doc, not in the tree: {sorted(set(RULES) - found)}"
+
+
+@pytest.mark.parametrize("package", sorted(RULES))
+def test_every_package_imports_only_what_the_doc_allows(package):
+    may_companion, may_libraries = RULES[package]
     offenders = []
-    for path in sorted(folder.rglob("*.py")):
+    for path in source_files():
+        if package_of(path) != package:
+            continue
         for name in imported_modules(path):
             root = name.split(".")[0]
-            if name.startswith("companion") and not top_allowed(name, allowed):
+            if root == "companion":
+                if name == "companion" or allowed(name, {package}):
+                    continue
+                if not allowed(name, may_companion):
+                    offenders.append(f"{path.relative_to(ROOT)}: {name}")
+            elif root == "sitl_mock":
+                if package != "sitl_mock":
+                    offenders.append(f"{path.relative_to(ROOT)}: {name}")
+            elif root not in sys.stdlib_module_names and root not in may_libraries:
                 offenders.append(f"{path.relative_to(ROOT)}: {name}")
-            elif root in FORBIDDEN_STDLIB or root in {"pymavlink", "yaml", "matplotlib"}:
-                offenders.append(f"{path.relative_to(ROOT)}: {name}")
+    assert not offenders, f"imports {package} may not make (docs/architecture.md):\n" + "\n".join(offenders)
+
+
+@pytest.mark.parametrize("package", MATHS_LAYERS)
+def test_maths_layers_touch_no_clock_socket_log_or_file(package):
+    offenders = []
+    for path in source_files():
+        if package_of(path) != package:
+            continue
+        offenders += [f"{path.relative_to(ROOT)}: {n}" for n in imported_modules(path)
+                      if n.split(".")[0] in FORBIDDEN_STDLIB]
     assert not offenders, "impure imports:\n" + "\n".join(offenders)
 
 
@@ -58,10 +121,5 @@ def test_mock_and_companion_share_nothing_but_the_wire():
 
 
 def test_pymavlink_only_in_io_and_mock():
-    offenders = []
-    for path in sorted((ROOT / "companion").rglob("*.py")):
-        rel = path.relative_to(ROOT).as_posix()
-        if rel.startswith("companion/io/"):
-            continue
-        offenders += [f"{rel}: {n}" for n in imported_modules(path) if n.split(".")[0] == "pymavlink"]
-    assert not offenders, "pymavlink outside companion.io:\n" + "\n".join(offenders)
+    users = {p for p, (_, libraries) in RULES.items() if "pymavlink" in libraries}
+    assert users == {"companion.io", "sitl_mock"}
