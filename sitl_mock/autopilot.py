@@ -29,7 +29,7 @@ from sitl_mock.personality import (
 from sitl_mock.vehicle import VehicleModel, VehicleParams
 
 EARTH_RADIUS_M = 6378137.0
-MSG_STATUSTEXT = 253
+MSG_STATUSTEXT = mavlink.MAVLINK_MSG_ID_STATUSTEXT
 HEARTBEAT_INTERVAL_S = 1.0
 MAX_STREAM_HZ = 400.0
 DEFAULT_ORIGIN = {"px4": (47.397742, 8.545594, 488.0), "ardupilot": (-35.363262, 149.165237, 584.0)}
@@ -321,7 +321,8 @@ class MockAutopilot:
         if int_frame is not None:
             lat = lat * 1e-7 if lat not in (0.0, 2**31 - 1) else math.nan
             lon = lon * 1e-7 if lon not in (0.0, 2**31 - 1) else math.nan
-            if int_frame in (3, 6) and math.isfinite(alt):  # GLOBAL_RELATIVE_ALT(_INT): home is at the origin
+            if int_frame in (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT) \
+                    and math.isfinite(alt):  # home is at the origin
                 alt += self.origin[2]
         north, east, down = self.local_from_geodetic(lat if math.isfinite(lat) else self.origin[0],
                                                      lon if math.isfinite(lon) else self.origin[1],
@@ -403,25 +404,25 @@ class MockAutopilot:
         COMMAND_INT frame, None for COMMAND_LONG.
         """
         f = self.flight
-        if command == 400:
+        if command == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
             if not math.isfinite(p[0]) or p[0] not in (0.0, 1.0):
                 return fl.MAV_RESULT_DENIED
             force = math.isfinite(p[1]) and int(p[1]) == fl.ARM_FORCE_MAGIC
             return f.arm(p[0] == 1.0, force)
-        if command == 176:
+        if command == mavlink.MAV_CMD_DO_SET_MODE:
             mode = self.pers.mode_from_do_set_mode(p[0], p[1], p[2])
             if mode is None:
                 return fl.MAV_RESULT_DENIED
             return f.set_mode(mode)
-        if command == 22:
+        if command == mavlink.MAV_CMD_NAV_TAKEOFF:
             return f.takeoff(p[6], self.origin[2])
-        if command == 21:
+        if command == mavlink.MAV_CMD_NAV_LAND:
             return f.land()
-        if command == 20:
+        if command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             return f.return_to_launch()
-        if command == 511:
+        if command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
             return self._cmd_set_message_interval(link, p)
-        if command == 510:
+        if command == mavlink.MAV_CMD_GET_MESSAGE_INTERVAL:
             if not math.isfinite(p[0]):
                 return fl.MAV_RESULT_DENIED
             msgid = int(p[0])
@@ -429,8 +430,8 @@ class MockAutopilot:
             self._ack(link, command, fl.MAV_RESULT_ACCEPTED, src)
             link.send(link.mav.message_interval_encode(msgid, -1 if interval is None else int(interval * 1e6)))
             return None
-        if command in (512, 520):
-            msgid = MSG_AUTOPILOT_VERSION if command == 520 else (int(p[0]) if math.isfinite(p[0]) else -1)
+        if command in (mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES):
+            msgid = MSG_AUTOPILOT_VERSION if command == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES else (int(p[0]) if math.isfinite(p[0]) else -1)
             if msgid == MSG_STATUSTEXT:
                 self._ack(link, command, fl.MAV_RESULT_ACCEPTED, src)
                 self._send_counters([link])
@@ -445,15 +446,15 @@ class MockAutopilot:
             if msg is not None:
                 link.send(msg)
             return None
-        if command == 178:
+        if command == mavlink.MAV_CMD_DO_CHANGE_SPEED:
             return f.change_speed(p[0], p[1])
-        if command == 192:
+        if command == mavlink.MAV_CMD_DO_REPOSITION:
             return self._reposition(p, int_frame)
-        if command == 43000 and self.pers.vehicle == "plane" and not self.pers.is_px4:
+        if command == mavlink.MAV_CMD_GUIDED_CHANGE_SPEED and self.pers.vehicle == "plane" and not self.pers.is_px4:
             if f.mode.behaviour != "guided":
                 return f.refuse(fl.MAV_RESULT_FAILED, "GUIDED_CHANGE_SPEED: not in GUIDED")
             return f.change_speed(p[0], p[1])
-        if command == 43001 and self.pers.vehicle == "plane" and not self.pers.is_px4:
+        if command == mavlink.MAV_CMD_GUIDED_CHANGE_ALTITUDE and self.pers.vehicle == "plane" and not self.pers.is_px4:
             return f.set_altitude_target(p[6])
         return fl.MAV_RESULT_UNSUPPORTED
 
@@ -483,7 +484,7 @@ class MockAutopilot:
     def _on_set_mode(self, link: Link, msg, src) -> None:
         mode = self.pers.mode_for_custom(msg.custom_mode) if msg.base_mode & 1 else None
         result = fl.MAV_RESULT_DENIED if mode is None else self.flight.set_mode(mode)
-        self._ack(link, 11, result, src)
+        self._ack(link, mavlink.MAVLINK_MSG_ID_SET_MODE, result, src)  # ArduPilot acks SET_MODE by its id
         self._flush_events()
 
     def _note_client_time(self, time_boot_ms: int) -> None:
@@ -514,12 +515,13 @@ class MockAutopilot:
     def _on_position_target_global(self, link: Link, msg, src) -> None:
         """SET_POSITION_TARGET_GLOBAL_INT: the position converted to local NED, the rest as the local message."""
         frame = msg.coordinate_frame
-        if frame not in (5, 6, 11):  # GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT, GLOBAL_TERRAIN_ALT_INT
+        if frame not in (mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                         mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT):
             return
         if abs(msg.lat_int) > 900000000 or abs(msg.lon_int) > 1800000000:
             self.counters.drop("bad_value")
             return
-        alt_amsl = msg.alt if frame == 5 else self.origin[2] + msg.alt  # home is on the ground at the origin
+        alt_amsl = msg.alt if frame == mavlink.MAV_FRAME_GLOBAL_INT else self.origin[2] + msg.alt  # home is on the ground at the origin
         north, east, down = self.local_from_geodetic(msg.lat_int * 1e-7, msg.lon_int * 1e-7, alt_amsl)
         reason = self.flight.set_position_target(
             fl.MAV_FRAME_LOCAL_NED, msg.type_mask, (north, east, down), (msg.vx, msg.vy, msg.vz),

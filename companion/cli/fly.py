@@ -6,6 +6,7 @@ import json
 import math
 
 from companion.errors import CompanionError
+from companion.loop.tick import DEFAULT_STALE_S
 
 
 def add_flight_options(parser, *, connect_required: bool = True) -> None:
@@ -18,8 +19,9 @@ def add_flight_options(parser, *, connect_required: bool = True) -> None:
                             help="expected autopilot (default: detect from its heartbeat)")
     parser.add_argument("--rate-hz", type=float, default=None,
                         help="guidance loop rate (default: the mission's guidance rate_hz, 50 unless set)")
-    parser.add_argument("--stale-s", type=float, default=0.3,
-                        help="position older than this -> hold (zero velocity, zero yaw rate); default 0.3")
+    parser.add_argument("--stale-s", type=float, default=DEFAULT_STALE_S,
+                        help="position older than this -> hold (zero velocity, zero yaw rate); "
+                             f"default {DEFAULT_STALE_S:g}")
     parser.add_argument("--link-timeout-s", type=float, default=5.0,
                         help="no autopilot heartbeat for this long -> stop sending and exit (default 5: "
                              "five missed 1 Hz heartbeats, the usual MAVLink link-loss rule)")

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.guidance.path_frame import is_finished, path_frame
-from companion.guidance.types import SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
+from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)
 WINDOW_SPACING_M = 1.0  # spacing of the local path samples the rollouts project onto
@@ -92,7 +92,7 @@ class PredictiveParams:
         cross-track error itself, as the law did before the reference.
     """
 
-    lambda_s4: float = 0.05
+    lambda_s4: float = DEFAULT_LAMBDA_S4
     lag_s: float = 0.0
     a_max_m_s2: float = math.inf
     l_min_m: float = 3.0

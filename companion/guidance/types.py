@@ -11,6 +11,13 @@ from dataclasses import dataclass, field, fields
 from typing import Protocol
 
 METHODS = ("fixed_l1", "corrector", "predictive")
+#: The law of a mission that names none (the mission schema's default).
+DEFAULT_METHOD = "predictive"
+#: The law of ``GuidanceParams()`` built in code (``companion bench paper``, the simulator's tests):
+#: the paper's corrector-aided law, which the paper's figures are about.
+PAPER_METHOD = "corrector"
+#: ``predictive``'s weight of the squared acceleration in its rollout cost (s^4): every default of it.
+DEFAULT_LAMBDA_S4 = 0.03
 PHASES = ("midcourse", "close_range", "finished")
 MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
 
@@ -49,7 +56,7 @@ class GuidanceParams:
     wind_x_m_s, wind_y_m_s : ``predictive`` only: known steady wind (ENU) its rollouts assume.
     """
 
-    method: str = "corrector"
+    method: str = PAPER_METHOD
     l1_m: float = 10.0
     speed_m_s: float = 5.0
     rate_hz: float = 50.0
@@ -59,7 +66,7 @@ class GuidanceParams:
     k2_max: float = 1.0e4
     d_limit_factor: float = 2.0
     rollout_tau_s: float = 0.0
-    lambda_s4: float = 0.03
+    lambda_s4: float = DEFAULT_LAMBDA_S4
     a_max_m_s2: float = math.inf
     wind_x_m_s: float = 0.0
     wind_y_m_s: float = 0.0

@@ -45,32 +45,49 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from companion.errors import LinkError
-from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
-from companion.io.state import GlobalOrigin, PositionSample, position_problem, yaw_problem
+from companion.io.setpoints import (
+    IGNORE_AX,
+    IGNORE_AY,
+    IGNORE_AZ,
+    IGNORE_VX,
+    IGNORE_VY,
+    IGNORE_VZ,
+    IGNORE_YAW,
+    IGNORE_YAW_RATE,
+    MAV_FRAME_LOCAL_NED,
+    AttitudeSetpoint,
+    VelocitySetpoint,
+)
+from companion.io.state import GlobalOrigin, PositionSample, global_origin_from_wire, position_problem, yaw_problem
 from companion.io.tlog import TlogWriter
 
-MAV_COMP_ID_ONBOARD_COMPUTER = 191
-MAV_TYPE_ONBOARD_CONTROLLER = 18
-MAV_AUTOPILOT_INVALID = 8
-MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_AUTOPILOT_PX4 = 12
-MSG_ID_LOCAL_POSITION_NED = 32
-MSG_ID_ATTITUDE = 30
-MSG_ID_GPS_GLOBAL_ORIGIN = 49
+# The dialect's names (pymavlink's ardupilotmega, a superset of common), re-exported for the
+# rest of the companion, which never imports pymavlink.
+MAV_COMP_ID_ONBOARD_COMPUTER = mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER
+MAV_TYPE_ONBOARD_CONTROLLER = mavlink2.MAV_TYPE_ONBOARD_CONTROLLER
+MAV_AUTOPILOT_INVALID = mavlink2.MAV_AUTOPILOT_INVALID
+MAV_AUTOPILOT_ARDUPILOTMEGA = mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA
+MAV_AUTOPILOT_PX4 = mavlink2.MAV_AUTOPILOT_PX4
+MSG_ID_LOCAL_POSITION_NED = mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED
+MSG_ID_ATTITUDE = mavlink2.MAVLINK_MSG_ID_ATTITUDE
+MSG_ID_GPS_GLOBAL_ORIGIN = mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN
 
-MAV_CMD_NAV_LAND = 21
-MAV_CMD_NAV_TAKEOFF = 22
-MAV_CMD_DO_SET_MODE = 176
-MAV_CMD_DO_CHANGE_SPEED = 178
-MAV_CMD_COMPONENT_ARM_DISARM = 400
-MAV_CMD_SET_MESSAGE_INTERVAL = 511
-MAV_CMD_REQUEST_MESSAGE = 512
-MAV_CMD_GUIDED_CHANGE_SPEED = 43000
-MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
-MAV_MODE_FLAG_SAFETY_ARMED = 128
+MAV_CMD_NAV_LAND = mavlink2.MAV_CMD_NAV_LAND
+MAV_CMD_NAV_TAKEOFF = mavlink2.MAV_CMD_NAV_TAKEOFF
+MAV_CMD_DO_SET_MODE = mavlink2.MAV_CMD_DO_SET_MODE
+MAV_CMD_DO_CHANGE_SPEED = mavlink2.MAV_CMD_DO_CHANGE_SPEED
+MAV_CMD_COMPONENT_ARM_DISARM = mavlink2.MAV_CMD_COMPONENT_ARM_DISARM
+MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
+MAV_CMD_REQUEST_MESSAGE = mavlink2.MAV_CMD_REQUEST_MESSAGE
+MAV_CMD_GUIDED_CHANGE_SPEED = mavlink2.MAV_CMD_GUIDED_CHANGE_SPEED
+MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+MAV_MODE_FLAG_SAFETY_ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+MAV_RESULT_IN_PROGRESS = mavlink2.MAV_RESULT_IN_PROGRESS
 
-MAV_RESULT_NAMES = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "UNSUPPORTED",
-                    4: "FAILED", 5: "IN_PROGRESS", 6: "CANCELLED"}
+#: MAV_RESULT in words (``ACCEPTED``, ``DENIED``, ...), from the dialect's enum.
+MAV_RESULT_NAMES = {value: entry.name.removeprefix("MAV_RESULT_")
+                    for value, entry in mavlink2.enums["MAV_RESULT"].items() if entry.name != "MAV_RESULT_ENUM_END"}
+MAV_RESULT_NAMES.setdefault(6, "CANCELLED")  # MAV_RESULT_CANCELLED: newer than this dialect
 
 #: A time_boot_ms this far behind the newest one means the autopilot restarted.
 RESTART_JUMP_S = 2.0
@@ -78,9 +95,13 @@ RESTART_JUMP_S = 2.0
 REJECT_REASONS = ("bad_crc", "bad_data", "unknown", "wrong_system", "wrong_address", "unsigned",
                   "bad_signature", "nan", "out_of_range", "old_sample")
 
-COPTER_TYPES = {2, 3, 4, 13, 14, 15, 29}  # quad, coaxial, heli, hexa, octo, tri, dodeca
-PLANE_TYPES = {1, 16, 19, 20, 21, 22, 23, 24, 25}  # fixed wing and VTOL variants
-ROVER_TYPES = {10, 11}  # ground rover, surface boat
+_T = mavlink2
+COPTER_TYPES = {_T.MAV_TYPE_QUADROTOR, _T.MAV_TYPE_COAXIAL, _T.MAV_TYPE_HELICOPTER, _T.MAV_TYPE_HEXAROTOR,
+                _T.MAV_TYPE_OCTOROTOR, _T.MAV_TYPE_TRICOPTER, _T.MAV_TYPE_DODECAROTOR}
+PLANE_TYPES = {_T.MAV_TYPE_FIXED_WING, _T.MAV_TYPE_FLAPPING_WING, _T.MAV_TYPE_VTOL_DUOROTOR,  # and VTOLs
+               _T.MAV_TYPE_VTOL_QUADROTOR, _T.MAV_TYPE_VTOL_TILTROTOR, _T.MAV_TYPE_VTOL_RESERVED2,
+               _T.MAV_TYPE_VTOL_RESERVED3, _T.MAV_TYPE_VTOL_RESERVED4, _T.MAV_TYPE_VTOL_RESERVED5}
+ROVER_TYPES = {_T.MAV_TYPE_GROUND_ROVER, _T.MAV_TYPE_SURFACE_BOAT}
 
 # PX4 custom_mode = (main << 16) | (sub << 24).
 PX4_MODES = {
@@ -460,7 +481,7 @@ class MavLink:
     @staticmethod
     def _is_autopilot_heartbeat(msg) -> bool:
         return msg.autopilot in (MAV_AUTOPILOT_PX4, MAV_AUTOPILOT_ARDUPILOTMEGA) and msg.type not in (
-            6, MAV_TYPE_ONBOARD_CONTROLLER, 26)  # GCS, onboard controller, gimbal
+            mavlink2.MAV_TYPE_GCS, MAV_TYPE_ONBOARD_CONTROLLER, mavlink2.MAV_TYPE_GIMBAL)
 
     def _pair(self, msg, addr) -> None:
         flavour = "px4" if msg.autopilot == MAV_AUTOPILOT_PX4 else "ardupilot"
@@ -520,11 +541,11 @@ class MavLink:
         elif mtype == "COMMAND_ACK":
             st.acks[int(msg.command)] = (int(msg.result), now)
         elif mtype == "GPS_GLOBAL_ORIGIN":
-            lat, lon, alt = msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3
-            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and abs(alt) < 1.0e5):
+            origin = global_origin_from_wire(msg.latitude, msg.longitude, msg.altitude, now)
+            if origin is None:
                 self.rejected["out_of_range"] += 1
                 return False
-            st.global_origin = GlobalOrigin(lat, lon, alt, received_s=now)
+            st.global_origin = origin
         elif hasattr(msg, "time_boot_ms"):
             tb = getattr(msg, "time_boot_ms")
             if isinstance(tb, int) and tb >= 0:
@@ -626,7 +647,7 @@ class MavLink:
                 if idle is not None:
                     idle()
                 ack = self.state.acks.get(int(command))
-                if ack is not None and ack[0] != 5:  # IN_PROGRESS: keep waiting
+                if ack is not None and ack[0] != MAV_RESULT_IN_PROGRESS:  # keep waiting
                     return ack[0]
         return None
 
@@ -735,9 +756,10 @@ class MavLink:
     def send_position_hold(self, x_ned_m: float, y_ned_m: float, z_ned_m: float) -> None:
         """Position-only target (ArduCopter GUIDED hover at a point: all three position bits used)."""
         ts, tc = self._target()
-        mask = 8 | 16 | 32 | 64 | 128 | 256 | 1024 | 2048
+        mask = (IGNORE_VX | IGNORE_VY | IGNORE_VZ | IGNORE_AX | IGNORE_AY | IGNORE_AZ | IGNORE_YAW
+                | IGNORE_YAW_RATE)
         self._mav.set_position_target_local_ned_send(
-            self.time_boot_ms(), ts, tc, 1, mask, x_ned_m, y_ned_m, z_ned_m,
+            self.time_boot_ms(), ts, tc, MAV_FRAME_LOCAL_NED, mask, x_ned_m, y_ned_m, z_ned_m,
             0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def record_debug(self, name: str, array_id: int, time_usec: int, data) -> None:

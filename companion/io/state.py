@@ -80,3 +80,20 @@ class GlobalOrigin:
     lon_deg: float
     alt_amsl_m: float
     received_s: float
+
+
+def global_origin_from_wire(latitude_e7: int, longitude_e7: int, altitude_mm: int,
+                            received_s: float) -> GlobalOrigin | None:
+    """A GPS_GLOBAL_ORIGIN's fields (degE7, degE7, mm) as a :class:`GlobalOrigin`, or None when
+    they are out of range (latitude beyond +-90 deg, longitude beyond +-180 deg, altitude beyond
+    +-100 km): the link and the log reader apply this one check.
+
+    >>> global_origin_from_wire(473977420, 85455940, 488000, 0.0).lat_deg
+    47.397742
+    >>> global_origin_from_wire(910000000, 0, 0, 0.0) is None
+    True
+    """
+    lat, lon, alt = latitude_e7 * 1e-7, longitude_e7 * 1e-7, altitude_mm * 1e-3
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and abs(alt) < 1.0e5):
+        return None
+    return GlobalOrigin(lat, lon, alt, received_s=received_s)

@@ -100,7 +100,7 @@ def compile_expression(text: str, variable: str) -> Callable[[np.ndarray], np.nd
         raise ExpressionError([f"expected an arithmetic expression, got a syntax error at column "
                                f"{err.offset or 0}: {text.strip()!r}"]) from None
     except (ValueError, RecursionError, MemoryError):
-        raise ExpressionError([f"expected an arithmetic expression, got unparseable text"]) from None
+        raise ExpressionError(["expected an arithmetic expression, got unparseable text"]) from None
 
     problems: list[str] = []
     try:

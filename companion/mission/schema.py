@@ -20,7 +20,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from companion.guidance.types import DEFAULT_LAMBDA_S4, DEFAULT_METHOD, METHODS, MIDCOURSE_TRIGGERS
 from companion.mission.expressions import ExpressionError, compile_expression
+from companion.mission.model import ON_FINISH
 
 _MISSING = object()
 
@@ -137,12 +139,9 @@ class Tagged:
 # --------------------------------------------------------------------------------------------
 
 FRAMES = ("local_enu", "local_ned", "geodetic")
-ON_FINISH = ("hold", "loiter", "rtl", "land")
-METHODS = ("fixed_l1", "corrector", "predictive")
-MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
-#: The method of a mission that names none. ``GuidanceParams()`` itself keeps ``corrector`` (the
-#: paper's law) for code that builds the guidance directly, e.g. ``companion bench paper``.
-DEFAULT_METHOD = "predictive"
+# ON_FINISH (companion.mission.model), METHODS, MIDCOURSE_TRIGGERS, DEFAULT_METHOD and
+# DEFAULT_LAMBDA_S4 (companion.guidance.types: a mission that names no method gets DEFAULT_METHOD;
+# ``GuidanceParams()`` itself keeps the paper's law) are defined once, where they belong.
 MAX_POINTS = 10000
 
 _FINITE = Number()
@@ -285,7 +284,7 @@ MISSION = Object(
                     "lambda_s4": Field(Number(minimum=0, maximum=100), "predictive: weight of the "
                                        "squared acceleration against the squared cross-track error "
                                        "(s^4); smaller tracks tighter, larger flies smoother",
-                                       default=0.03),
+                                       default=DEFAULT_LAMBDA_S4),
                     "a_max_m_s2": Field(Number(exclusive_minimum=0, maximum=100), "predictive: the "
                                         "vehicle's lateral-acceleration limit; every command is "
                                         "clipped to it (absent: no limit)"),

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Callable, NamedTuple
 
 from companion.errors import LogError
-from companion.io.state import GlobalOrigin
+from companion.io.state import GlobalOrigin, global_origin_from_wire
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
 from companion.loop.tick import DEBUG_FIELDS, PHASE_CODES
@@ -208,9 +208,9 @@ def read_flight(
                 if msg.autopilot == MAV_AUTOPILOT_INVALID:  # a GCS, a companion, a camera
                     not_autopilots.add((rec.src_system, rec.src_component))
             elif mid == ID_GPS_GLOBAL_ORIGIN and (rec.src_system, rec.src_component) not in not_autopilots:
-                lat, lon, alt = msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3
-                if -90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and abs(alt) < 1.0e5:
-                    origins[rec.src_system] = GlobalOrigin(lat, lon, alt, received_s=rec.time_s)
+                origin = global_origin_from_wire(msg.latitude, msg.longitude, msg.altitude, rec.time_s)
+                if origin is not None:
+                    origins[rec.src_system] = origin
             elif mid == ID_ATTITUDE and (rec.src_system, rec.src_component) not in not_autopilots:
                 if math.isfinite(msg.yaw):
                     newest_yaw[rec.src_system] = msg.yaw
