@@ -115,7 +115,7 @@ def format_metrics_table(summary: dict) -> str:
     lines = [f"{'phase':<12} {'d_rms_m':>9} {'d_max_m':>9} {'a_rms_m_s2':>11} {'a_max_m_s2':>11} "
              f"{'duration_s':>11}"]
     for name, m in rows:
-        def f(key, width, fmt="{:.3f}"):
+        def f(key, width, fmt="{:.3f}", m=m):
             v = m.get(key)
             return (fmt.format(v) if isinstance(v, (int, float)) and math.isfinite(v) else "n/a").rjust(width)
         lines.append(f"{name:<12} {f('d_rms_m', 9)} {f('d_max_m', 9)} {f('a_rms_m_s2', 11)} "

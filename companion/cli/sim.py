@@ -39,7 +39,7 @@ def _parse_xy(text: str) -> tuple[float, float]:
     try:
         x, y = (float(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y in metres (e.g. -15,0), got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected X,Y in metres (e.g. -15,0), got {text!r}") from None
     if not (math.isfinite(x) and math.isfinite(y)):
         raise argparse.ArgumentTypeError(f"expected finite X,Y, got {text!r}")
     return x, y

@@ -15,8 +15,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 #: WGS-84 semi-major axis (m) and flattening.
+#: Three coordinates of one or many points (arrays of one shape, 0-d for a scalar input).
+Triple = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+
 WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
 WGS84_B_M = WGS84_A_M * (1.0 - WGS84_F)
@@ -24,7 +28,7 @@ WGS84_E2 = WGS84_F * (2.0 - WGS84_F)  # first eccentricity squared
 WGS84_EP2 = WGS84_E2 / (1.0 - WGS84_E2)  # second eccentricity squared
 
 
-def ecef_from_geodetic(lat_deg, lon_deg, alt_m):
+def ecef_from_geodetic(lat_deg: ArrayLike, lon_deg: ArrayLike, alt_m: ArrayLike) -> Triple:
     """Earth-centred Earth-fixed coordinates (m) of geodetic points (arrays or scalars)."""
     lat = np.radians(np.asarray(lat_deg, dtype=float))
     lon = np.radians(np.asarray(lon_deg, dtype=float))
@@ -37,7 +41,7 @@ def ecef_from_geodetic(lat_deg, lon_deg, alt_m):
     return x, y, z
 
 
-def geodetic_from_ecef(x_m, y_m, z_m):
+def geodetic_from_ecef(x_m: ArrayLike, y_m: ArrayLike, z_m: ArrayLike) -> Triple:
     """Geodetic latitude, longitude (degrees) and ellipsoidal height (m) of ECEF points."""
     x = np.asarray(x_m, dtype=float)
     y = np.asarray(y_m, dtype=float)
@@ -59,7 +63,7 @@ def geodetic_from_ecef(x_m, y_m, z_m):
     return np.degrees(lat), np.degrees(lon), h
 
 
-def _enu_rotation(lat0_deg: float, lon0_deg: float) -> np.ndarray:
+def _enu_rotation(lat0_deg: float, lon0_deg: float) -> NDArray[np.float64]:
     """Rows: the east, north and up unit vectors at the origin, in ECEF."""
     lat0, lon0 = math.radians(lat0_deg), math.radians(lon0_deg)
     sl, cl = math.sin(lat0), math.cos(lat0)
@@ -71,7 +75,8 @@ def _enu_rotation(lat0_deg: float, lon0_deg: float) -> np.ndarray:
     ])
 
 
-def enu_from_geodetic(lat_deg, lon_deg, alt_m, lat0_deg: float, lon0_deg: float, alt0_m: float):
+def enu_from_geodetic(lat_deg: ArrayLike, lon_deg: ArrayLike, alt_m: ArrayLike, lat0_deg: float, lon0_deg: float,
+                      alt0_m: float) -> Triple:
     """Local ENU coordinates (m) of geodetic points about the origin ``(lat0, lon0, alt0)``.
 
     Parameters
@@ -97,7 +102,8 @@ def enu_from_geodetic(lat_deg, lon_deg, alt_m, lat0_deg: float, lon0_deg: float,
     return east, north, up
 
 
-def geodetic_from_enu(east_m, north_m, up_m, lat0_deg: float, lon0_deg: float, alt0_m: float):
+def geodetic_from_enu(east_m: ArrayLike, north_m: ArrayLike, up_m: ArrayLike, lat0_deg: float, lon0_deg: float,
+                      alt0_m: float) -> Triple:
     """Inverse of :func:`enu_from_geodetic`: ``(lat_deg, lon_deg, alt_m)`` of local ENU points."""
     rot = _enu_rotation(lat0_deg, lon0_deg)
     enu = np.stack([np.asarray(east_m, float), np.asarray(north_m, float), np.asarray(up_m, float)])

@@ -54,6 +54,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from companion.guidance.types import frozen_maker
 
@@ -82,7 +83,10 @@ class CorrectorTerms:
     corrector_used: bool
 
 
-#: A :class:`CorrectorTerms` from its fifteen field values in order (``frozen_maker``).
+#: A scalar or an array of them (the vectorised commands broadcast their arguments).
+Floats = float | NDArray[np.float64]
+
+#: A :class:`CorrectorTerms` from its fifteen fields by name (``frozen_maker``).
 _terms = frozen_maker(CorrectorTerms)
 
 
@@ -148,8 +152,9 @@ def corrector_command(x1_m: float, y1_m: float, course_rad: float, speed_m_s: fl
     if fwd2 > 0.0:
         p4 = corrector_point(x1_m, y1_m, vx, vy, proj[0], proj[1], proj[2], proj[3], x2, y2)
     if p4 is None:
-        return _terms(a12, a12, math.nan, eta12, None, p3, math.nan, l23, math.nan,
-                      math.nan, math.nan, radius, math.inf, 0.0, False)
+        return _terms(a_cmd_m_s2=a12, a12_m_s2=a12, a14_m_s2=math.nan, eta12_rad=eta12, corrector_xy_m=None,
+                      p3_xy_m=p3, l_c_m=math.nan, l23_m=l23, l43_m=math.nan, v_l_m_s=math.nan,
+                      v_m_m_s=math.nan, radius_l1_m=radius, w1=math.inf, w2=0.0, corrector_used=False)
     dx4, dy4 = p4[0] - x1_m, p4[1] - y1_m
     lat4 = vx * dy4 - vy * dx4
     l_c = math.hypot(dx4, dy4)
@@ -168,13 +173,14 @@ def corrector_command(x1_m: float, y1_m: float, course_rad: float, speed_m_s: fl
         w1, w2 = (math.inf if k1 > 0 else 0.0), 0.0
     else:
         w1, w2 = w1s * radius, w2s * radius
-    return _terms(a, a12, a14, eta12, p4, p3, l_c, l23, l43, v_l, v_m, radius, w1, w2,
-                  w2s > 0.0 and w1s + w2s > 0.0)
+    return _terms(a_cmd_m_s2=a, a12_m_s2=a12, a14_m_s2=a14, eta12_rad=eta12, corrector_xy_m=p4, p3_xy_m=p3,
+                  l_c_m=l_c, l23_m=l23, l43_m=l43, v_l_m_s=v_l, v_m_m_s=v_m, radius_l1_m=radius, w1=w1, w2=w2,
+                  corrector_used=w2s > 0.0 and w1s + w2s > 0.0)
 
 
-def corrector_command_array(x1_m, y1_m, course_rad, speed_m_s: float, l1_m: float,
-                            px_m, py_m, tx, ty, x2_m, y2_m, t2x, t2y, k_l1,
-                            k1, k2) -> np.ndarray:
+def corrector_command_array(x1_m: Floats, y1_m: Floats, course_rad: Floats, speed_m_s: float, l1_m: float,
+                            px_m: Floats, py_m: Floats, tx: Floats, ty: Floats, x2_m: Floats, y2_m: Floats,
+                            t2x: Floats, t2y: Floats, k_l1: Floats, k1: Floats, k2: Floats) -> NDArray[np.float64]:
     """Vectorised :func:`corrector_command` (command only), for the rollouts of many candidates.
 
     Every argument but ``speed_m_s`` and ``l1_m`` may be an array (broadcast together). With
@@ -184,9 +190,9 @@ def corrector_command_array(x1_m, y1_m, course_rad, speed_m_s: float, l1_m: floa
                                  px_m, py_m, tx, ty, x2_m, y2_m, t2x, t2y, k_l1, k1, k2)
 
 
-def corrector_command_vxy(x1_m, y1_m, vx, vy, speed_m_s: float, l1_m: float,
-                          px_m, py_m, tx, ty, x2_m, y2_m, t2x, t2y, k_l1,
-                          k1, k2) -> np.ndarray:
+def corrector_command_vxy(x1_m: Floats, y1_m: Floats, vx: Floats, vy: Floats, speed_m_s: float, l1_m: float,
+                          px_m: Floats, py_m: Floats, tx: Floats, ty: Floats, x2_m: Floats, y2_m: Floats,
+                          t2x: Floats, t2y: Floats, k_l1: Floats, k1: Floats, k2: Floats) -> NDArray[np.float64]:
     """:func:`corrector_command_array` given the unit velocity ``(vx, vy) = (cos, sin)(course)``
     instead of the course: the rollouts already hold both from their unicycle step."""
     V = speed_m_s
@@ -214,4 +220,5 @@ def corrector_command_vxy(x1_m, y1_m, vx, vy, speed_m_s: float, l1_m: float,
     w1s = k1 / (1.0 + np.abs(lat2))
     w2s = np.where(ok, k2 * v_m * k_l1 * k_l1 / (1.0 + np.abs(lat4)), 0.0)
     tot = w1s + w2s
-    return np.where(tot > 0.0, (w1s * a12 + w2s * a14) / np.where(tot > 0.0, tot, 1.0), a12)
+    out: NDArray[np.float64] = np.where(tot > 0.0, (w1s * a12 + w2s * a14) / np.where(tot > 0.0, tot, 1.0), a12)
+    return out

@@ -170,7 +170,7 @@ def plan_midcourse(x_m: float, y_m: float, course_rad: float, speed_m_s: float,
     left, right = initiation_circles(start_xy_m, start_heading_rad, radius_m)
     tx, ty = math.cos(start_heading_rad), math.sin(start_heading_rad)
     case = 1 if (x_m - start_xy_m[0]) * tx + (y_m - start_xy_m[1]) * ty < 0.0 else 2
-    approaches = []
+    approaches: list[Approach | None] = []
     for circle in (left, right):
         try:
             approaches.append(contact_approach(x_m, y_m, course_rad, speed_m_s, circle, start_xy_m))
@@ -180,7 +180,7 @@ def plan_midcourse(x_m: float, y_m: float, course_rad: float, speed_m_s: float,
     if a_left is None or a_right is None:
         if a_left is None and a_right is None:
             raise ValueError("mid-course: the vehicle is at the path start, inside both circles")
-        return MidcoursePlan(a_left or a_right, None, case, "only_outside")
+        return MidcoursePlan(a_left if a_left is not None else a_right, None, case, "only_outside")  # type: ignore[arg-type]
     if a_left.primary != a_right.primary:
         chosen, other = (a_left, a_right) if a_left.primary else (a_right, a_left)
         rule = "only_primary"
@@ -251,6 +251,7 @@ class MidcourseGuidance:
 
     @property
     def circle(self) -> InitiationCircle:
+        assert self.plan is not None, "plan() first"
         return self.plan.chosen.circle
 
     def _remaining_rad(self, x_m: float, y_m: float) -> float:
@@ -282,6 +283,7 @@ class MidcourseGuidance:
                 self.lookahead_xy_m = (ox, oy)
                 return self._turn_sign * speed_m_s * speed_m_s / self.radius_m, "turn_in", False
         if self.stage == "approach":
+            assert self.plan is not None, "plan() first"
             self._flown_m += dt * speed_m_s
             # Switch on the tick closest to W (half a tick early).
             if self._flown_m + 0.5 * speed_m_s * dt >= self.plan.chosen.arc_m:

@@ -18,14 +18,34 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 from companion.geometry.frames import wrap_pi as wrap_pi  # re-exported for the laws
+
+class PathLike(Protocol):
+    """The documented path contract the laws use (``docs/architecture.md``, "Path").
+
+    :class:`companion.geometry.paths.Path` is one; a bench may hand a law another. Optional
+    faster forms (``frame``, ``lookahead``, ``frame_array``) are looked up with ``getattr``.
+    """
+
+    length_m: float
+    closed: bool
+
+    def point(self, s_m: float) -> Any: ...
+
+    def tangent(self, s_m: float) -> Any: ...
+
+    def curvature(self, s_m: float) -> float: ...
+
+    def project(self, x_m: float, y_m: float, s_hint: float | None = None) -> Any: ...
+
 
 #: Arc-length tolerance used to decide that the projection has reached the end of an open path.
 END_TOL_M = 1.0e-3
 
 
-def _as_s(result) -> float:
+def _as_s(result: Any) -> float:
     """Arc length out of a projection/look-ahead result (a float, or a tuple whose first item is s)."""
     if isinstance(result, (tuple, list)):
         return float(result[0])
@@ -33,7 +53,7 @@ def _as_s(result) -> float:
     return float(result if s is None else s)
 
 
-def _xy(v) -> tuple[float, float]:
+def _xy(v: Any) -> tuple[float, float]:
     return float(v[0]), float(v[1])
 
 
@@ -54,7 +74,7 @@ class PathFrame:
         return math.atan2(self.ty, self.tx)
 
 
-def wrap_s(path, s_m: float) -> float:
+def wrap_s(path: PathLike, s_m: float) -> float:
     """Arc length mapped into ``[0, length_m]`` (modulo the length on a closed path, else clamped)."""
     length = float(path.length_m)
     if path.closed:
@@ -62,7 +82,7 @@ def wrap_s(path, s_m: float) -> float:
     return min(max(s_m, 0.0), length)
 
 
-def path_frame(path, x_m: float, y_m: float, s_hint_m: float | None) -> PathFrame:
+def path_frame(path: PathLike, x_m: float, y_m: float, s_hint_m: float | None) -> PathFrame:
     """Closest point, tangent, curvature and signed cross-track error of the vehicle at (x, y)."""
     s = _as_s(path.project(x_m, y_m, s_hint_m))
     frame = getattr(path, "frame", None)
@@ -79,7 +99,7 @@ def path_frame(path, x_m: float, y_m: float, s_hint_m: float | None) -> PathFram
     return PathFrame(s, px, py, tx, ty, float(k), d)
 
 
-def lookahead_s(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> float | None:
+def lookahead_s(path: PathLike, x_m: float, y_m: float, l_m: float, s_from_m: float) -> float | None:
     """First arc length forward of ``s_from_m`` at Euclidean distance ``l_m`` from (x, y).
 
     Uses ``path.lookahead`` when the path has it (same contract). Otherwise marches forward in
@@ -123,7 +143,7 @@ def lookahead_s(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> fl
     return hi
 
 
-def goal_point(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> tuple[float, float] | None:
+def goal_point(path: PathLike, x_m: float, y_m: float, l_m: float, s_from_m: float) -> tuple[float, float] | None:
     """The look-ahead point at distance ``l_m``, continuing an open path straight past its end.
 
     Near the end of an open path the whole rest of it lies within ``l_m`` of the vehicle and
@@ -149,6 +169,6 @@ def goal_point(path, x_m: float, y_m: float, l_m: float, s_from_m: float) -> tup
     return ex + u * tx, ey + u * ty
 
 
-def is_finished(path, s_m: float) -> bool:
+def is_finished(path: PathLike, s_m: float) -> bool:
     """An open path is finished once its closest point is its end; a closed path never finishes."""
     return (not path.closed) and s_m >= float(path.length_m) - END_TOL_M

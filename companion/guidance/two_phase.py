@@ -48,7 +48,7 @@ import math
 from companion.geometry.paths import Path
 from companion.guidance.corrector import corrector_command
 from companion.guidance.l1 import l1_command
-from companion.guidance.midcourse import MidcourseGuidance
+from companion.guidance.midcourse import MidcourseGuidance, MidcoursePlan
 from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
 from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
 from companion.guidance.types import (
@@ -63,7 +63,7 @@ from companion.guidance.types import (
 # Below this ground speed the rollouts are meaningless (hovering, taking off): gains are kept.
 MIN_OPTIMISE_SPEED_M_S = 0.3
 
-_output = frozen_maker(GuidanceOutput)  # every field in order, filled at once
+_output = frozen_maker(GuidanceOutput)  # every field by name, filled at once
 
 
 class TwoPhaseGuidance:
@@ -99,7 +99,7 @@ class TwoPhaseGuidance:
 
     # ------------------------------------------------------------------ public
     @property
-    def midcourse_plan(self):
+    def midcourse_plan(self) -> MidcoursePlan | None:
         """The mid-course plan (None when the mid-course phase was not triggered)."""
         return None if self._midcourse is None else self._midcourse.plan
 
@@ -137,6 +137,7 @@ class TwoPhaseGuidance:
     # ------------------------------------------------------------------ phases
     def _midcourse_step(self, t_s: float, state: VehicleState) -> GuidanceOutput | None:
         mc = self._midcourse
+        assert mc is not None  # step() calls this only in the mid-course phase
         a, stage, done = mc.step(t_s, state.x_m, state.y_m, state.course_rad, state.speed_m_s)
         if done:
             mc.stage = "done"
@@ -148,6 +149,7 @@ class TwoPhaseGuidance:
         # The paper takes the distance to the path start as the mid-course cross-track error.
         dist = math.hypot(state.x_m - sx, state.y_m - sy)
         plan = mc.plan
+        assert plan is not None
         return GuidanceOutput(
             a_cmd_m_s2=a, phase="midcourse", crosstrack_m=dist, s_proj_m=0.0,
             lookahead_xy_m=mc.lookahead_xy_m,
@@ -189,6 +191,7 @@ class TwoPhaseGuidance:
                                   s_proj_m=s_proj, k1=1.0, k2=0.0, lookahead_xy_m=(lx, ly))
         reoptimised = False
         if t_s >= self._t_next_opt and V > MIN_OPTIMISE_SPEED_M_S:
+            assert self._optimiser is not None  # method "corrector"
             warm = ratio_from_gains(self._k1, self._k2)
             k1, k2, window = self._optimiser.optimise(x, y, course, V, s_proj, s_look, warm,
                                                       self._a_achieved_estimate(t_s))
@@ -197,15 +200,16 @@ class TwoPhaseGuidance:
             reoptimised = True
         terms = corrector_command(x, y, course, V, p.l1_m, (px, py, tx, ty),
                                   (lx, ly, ltx, lty, lk), self._k1, self._k2)
-        # GuidanceOutput(a_cmd, phase, crosstrack, s_proj, k1, k2, lookahead_xy, corrector_xy,
-        # reoptimised, extra), filled at once: the 50 Hz path
-        return _output(terms.a_cmd_m_s2, "close_range", crosstrack, s_proj, self._k1, self._k2,
-                       (lx, ly), terms.corrector_xy_m, reoptimised,
-                       {"a12_m_s2": terms.a12_m_s2, "a14_m_s2": terms.a14_m_s2, "w1": terms.w1,
-                        "w2": terms.w2})
+        # a GuidanceOutput filled at once: the 50 Hz path
+        return _output(a_cmd_m_s2=terms.a_cmd_m_s2, phase="close_range", crosstrack_m=crosstrack, s_proj_m=s_proj,
+                       k1=self._k1, k2=self._k2, lookahead_xy_m=(lx, ly), corrector_xy_m=terms.corrector_xy_m,
+                       reoptimised=reoptimised,
+                       extra={"a12_m_s2": terms.a12_m_s2, "a14_m_s2": terms.a14_m_s2, "w1": terms.w1,
+                              "w2": terms.w2})
 
     def _predictive_step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         """The close-range phase of ``method="predictive"``: the predictive law's own step."""
+        assert self._predictive is not None  # method "predictive"
         out = self._predictive.step(t_s, state)
         self._s_proj = out.s_proj_m
         if out.phase == "finished":
@@ -230,6 +234,7 @@ class TwoPhaseGuidance:
                          crosstrack: float | None = None) -> GuidanceOutput:
         if s_proj is None:
             s_proj = self.path.project(state.x_m, state.y_m, self._s_proj)
+        if crosstrack is None:
             crosstrack = self.path.crosstrack_m(state.x_m, state.y_m, s_proj)
         predictive = self._predictive is not None  # no corrector weights: k1 = k2 = NaN
         return GuidanceOutput(a_cmd_m_s2=0.0, phase="finished", crosstrack_m=crosstrack,

@@ -547,7 +547,7 @@ class MavLink:
                 return False
             st.global_origin = origin
         elif hasattr(msg, "time_boot_ms"):
-            tb = getattr(msg, "time_boot_ms")
+            tb = msg.time_boot_ms
             if isinstance(tb, int) and tb >= 0:
                 self._advance_time(tb)
         return True

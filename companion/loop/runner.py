@@ -290,7 +290,7 @@ class FlightRunner:
                 profile.finish(self._on_finish_action())
         except _Terminate:
             self.exit_reason = "SIGTERM"
-            raise FlightAborted("terminated (SIGTERM); flight log closed")
+            raise FlightAborted("terminated (SIGTERM); flight log closed") from None
         except KeyboardInterrupt:
             self.exit_reason = "interrupted"
             raise

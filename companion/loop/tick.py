@@ -152,7 +152,7 @@ class TickResult:
         return debug_row(self)
 
 
-#: Every field in order, filled at once (``frozen_maker``: one tick builds these 50 times a second).
+#: Every field by name, filled at once (``frozen_maker``: one tick builds these 50 times a second).
 _tick_result = frozen_maker(TickResult)
 _vehicle_state = frozen_maker(VehicleState)
 
@@ -215,7 +215,7 @@ def compute_tick(
     else:
         course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
         x_enu, y_enu, _ = frames.enu_from_ned(sample.x_ned_m, sample.y_ned_m, sample.z_ned_m)
-        state = _vehicle_state(x_enu, y_enu, course, config.speed_m_s)
+        state = _vehicle_state(x_m=x_enu, y_m=y_enu, course_rad=course, speed_m_s=config.speed_m_s)
         output = guidance.step(t_s, state)
         phase = output.phase
         a_cmd = float(output.a_cmd_m_s2)
@@ -234,8 +234,9 @@ def compute_tick(
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
-    return _tick_result(tick, t_s, phase, hold_reason, state, output, setpoint, sample,
-                        sample_age_s, course, course_cmd, prev_cmd, prev_course_rad)
+    return _tick_result(tick=tick, t_s=t_s, phase=phase, hold_reason=hold_reason, state=state, output=output,
+                        setpoint=setpoint, sample=sample, sample_age_s=sample_age_s, course_rad=course,
+                        course_cmd_rad=course_cmd, prev_course_cmd_rad=prev_cmd, prev_course_rad=prev_course_rad)
 
 
 def hold_for(config: TickConfig, alt_m: float, have_sample: bool,

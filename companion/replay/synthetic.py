@@ -27,6 +27,7 @@ closed racetrack) and is what ``companion bench perf`` reports.
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import math
 import struct
 import tempfile
@@ -192,7 +193,11 @@ def write_synthetic_flight(
             if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["SYS_STATUS"]):
                 tlog.write(autopilot.sys_status_packet(12_400, 1_250, 80), at_unix_s)
 
-        def write_row(result, at_unix_s: float) -> None:
+        def record_row(unix_s: float, result: TickResult, sent: bool) -> None:
+            """A finished step's row: a fresh one just before its setpoint, a late one earlier."""
+            write_row(result, unix_s + (20e-6 if sent else 10e-6))
+
+        def write_row(result: TickResult, at_unix_s: float) -> None:
             time_usec = result.sample.time_boot_ms * 1000 if result.sample is not None else 0
             tlog.write(companion.debug_float_array_packet("guidance", result.tick, time_usec, result.debug),
                        at_unix_s)
@@ -220,7 +225,7 @@ def write_synthetic_flight(
             t_s = t_grid + TICK_JITTER_S * math.sin(0.7 * k)
             age = SAMPLE_AGE_S + (t_grid - sample_t)
             tick_out = driver.run_tick(t_s, t_s, sample, age, yaw_seen, slow_steps, 0.0,
-                                       lambda res, sent: write_row(res, unix + (20e-6 if sent else 10e-6)))
+                                       functools.partial(record_row, unix))
             sp = tick_out.setpoint
             # as the runner: the tick's guidance row, then its setpoint; a coast after the budget
             sent_at = unix + 40e-6 if tick_out.result is not None else unix + 0.5 * dt

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 import struct
 
-import pytest
 
 import companion.guidance.two_phase as two_phase
 from companion.geometry.paths import function_path

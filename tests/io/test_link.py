@@ -2,7 +2,6 @@
 
 import math
 import socket
-import struct
 import time
 
 import pytest

@@ -14,7 +14,7 @@ from companion.geometry.paths import waypoint_path
 from companion.guidance.types import GuidanceOutput
 from companion.loop.runner import FlightRunner, FlyOptions, Status
 from companion.mission import Mission
-from kinematic_peer import PX4_OFFBOARD, KinematicAutopilot
+from kinematic_peer import KinematicAutopilot
 
 
 class StraightLineGuidance:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
-from companion.io.mock_process import free_udp_port
+from companion.io.mock_process import free_udp_port  # noqa: F401 - the tests take it from here
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable

@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.path_frame import goal_point, is_finished, path_frame, wrap_pi
+from companion.guidance.path_frame import PathLike, goal_point, is_finished, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 CAPTURE_LIMIT_RAD = math.pi / 4.0  # ArduPilot: sine_Nu1 constrained to +-0.7071
@@ -96,7 +96,7 @@ class ApL1Guidance:
 
     method = "ap_l1"
 
-    def __init__(self, path, params: ApL1Params | None = None):
+    def __init__(self, path: PathLike, params: ApL1Params | None = None) -> None:
         self.path = path
         self.params = params if params is not None else ApL1Params()
         self._s_hint: float | None = None

@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.path_frame import is_finished, path_frame
+from companion.guidance.path_frame import PathLike, is_finished, path_frame
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 EPSILON = 1.0e-4  # as PX4's NPFG::EPSILON
@@ -130,7 +130,7 @@ class NpfgGuidance:
 
     method = "npfg"
 
-    def __init__(self, path, params: NpfgParams | None = None):
+    def __init__(self, path: PathLike, params: NpfgParams | None = None) -> None:
         self.path = path
         self.params = params if params is not None else NpfgParams()
         self._s_hint: float | None = None

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.path_frame import goal_point, is_finished, path_frame, wrap_pi
+from companion.guidance.path_frame import PathLike, goal_point, is_finished, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 
@@ -54,7 +54,7 @@ class PurePursuitGuidance:
 
     method = "pure_pursuit"
 
-    def __init__(self, path, params: PurePursuitParams | None = None):
+    def __init__(self, path: PathLike, params: PurePursuitParams | None = None) -> None:
         self.path = path
         self.params = params if params is not None else PurePursuitParams()
         self._s_hint: float | None = None
