@@ -141,12 +141,14 @@ _Record = TypeVar("_Record")
 
 
 def frozen_maker(cls: type[_Record]) -> Callable[..., _Record]:
-    """A constructor of the frozen dataclass ``cls`` for hot paths: it takes every field by name
-    (keywords only, all of them) and fills the instance's ``__dict__`` at once, where a frozen
-    dataclass's ``__init__`` calls ``object.__setattr__`` once per field (a measurable share of a
-    50 Hz tick). A missing or unknown name is a ``TypeError``, so two values of one type cannot
-    swap places silently. It runs no ``__post_init__``, so it is only for classes without one; the
-    instance is the same in every other respect.
+    """A constructor of the frozen dataclass ``cls`` for hot paths: it fills the instance's
+    ``__dict__`` at once, where a frozen dataclass's ``__init__`` calls ``object.__setattr__`` once
+    per field (a measurable share of a 50 Hz tick). It runs no ``__post_init__``, so it is only for
+    classes without one; the instance is the same in every other respect.
+
+    Give every field by name (the hot paths do): a missing or unknown name is a ``TypeError``, so
+    two values of one type cannot swap places silently. Every field positionally, in declaration
+    order, is also accepted (only the count is checked then).
 
     >>> make = frozen_maker(VehicleState)
     >>> make(x_m=1.0, y_m=2.0, course_rad=0.0, speed_m_s=5.0) == VehicleState(1.0, 2.0, 0.0, 5.0)
@@ -157,16 +159,21 @@ def frozen_maker(cls: type[_Record]) -> Callable[..., _Record]:
     """
     if hasattr(cls, "__post_init__"):
         raise TypeError(f"frozen_maker: {cls.__name__} validates in __post_init__; use its constructor")
-    names = frozenset(f.name for f in fields(cls))  # type: ignore[arg-type]
+    order = tuple(f.name for f in fields(cls))  # type: ignore[arg-type]
+    names = frozenset(order)
     new = object.__new__
 
-    def make(**values: object) -> _Record:
-        if values.keys() != names:
-            missing = ", ".join(sorted(names - values.keys())) or "nothing"
-            unknown = ", ".join(sorted(values.keys() - names)) or "nothing"
+    def make(*values: object, **named: object) -> _Record:
+        if values:
+            if named or len(values) != len(order):
+                raise TypeError(f"{cls.__name__}: expected {len(order)} values in order, got {len(values)}")
+            named = dict(zip(order, values))
+        elif named.keys() != names:
+            missing = ", ".join(sorted(names - named.keys())) or "nothing"
+            unknown = ", ".join(sorted(named.keys() - names)) or "nothing"
             raise TypeError(f"{cls.__name__}: missing {missing}; unknown {unknown}")
         obj = new(cls)
-        obj.__dict__.update(values)
+        obj.__dict__.update(named)
         return obj
 
     return make

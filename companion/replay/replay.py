@@ -263,36 +263,46 @@ def replay_flight(
         config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight))
     config = config or tick_config_for(mission, rate_hz, flight_output(flight))
     guidance = guidance_factory(mission, rate_hz)
-    path = mission.path
-    companion_log = flight.kind == "companion"
-    n = len(flight.ticks)
-    # Python lists while stepping (an item store is several times cheaper than into an ndarray).
-    cols = {name: [math.nan] * n for name in _SERIES}
-    compared = [False] * n
-    phase_logged: list[str] = []
-    phase_replayed: list[str] = []
-    first_divergence = None
-    # The state the live loop carries from tick to tick, with the loop's rules.
-    driver = TickDriver(guidance, config, path.start_heading_rad)
-    s_hint = None
+    replay = _Replay(flight, mission, tolerance, config, guidance)
+    replay.run(progress)
+    return replay.result(mission, tolerance, rate_hz, time.perf_counter() - started)
 
-    coasts = flight.coasts if companion_log else []
-    tol_yaw, tol_vel = tolerance.yaw_rate_rad_s, tolerance.vel_m_s
-    coast_next = 0
-    coast_diffs: list[dict] = []
 
-    def replay_coasts_before(row: int) -> None:
+class _Replay:
+    """One replay's state: the tick driver, the series (Python lists while stepping: an item
+    store is several times cheaper than into an ndarray), the phases and the first divergence."""
+
+    def __init__(self, flight: LoggedFlight, mission: Mission, tolerance: Tolerance, config: TickConfig,
+                 guidance: GuidanceLaw):
+        self.flight = flight
+        self.tolerance = tolerance
+        self.path = mission.path
+        self.companion_log = flight.kind == "companion"
+        n = len(flight.ticks)
+        self.cols: dict[str, list[float]] = {name: [math.nan] * n for name in _SERIES}
+        self.compared = [False] * n
+        self.phase_logged: list[str] = []
+        self.phase_replayed: list[str] = []
+        self.first_divergence: dict | None = None
+        # The state the live loop carries from tick to tick, with the loop's rules.
+        self.driver = TickDriver(guidance, config, self.path.start_heading_rad)
+        self.s_hint: float | None = None
+        self.coasts = flight.coasts if self.companion_log else []
+        self.coast_next = 0
+        self.coast_diffs: list[dict] = []
+
+    def coasts_before(self, row: int) -> None:
         """Replay the coasting setpoints sent after the previous row and before ``row``."""
-        nonlocal coast_next, first_divergence
-        while coast_next < len(coasts) and coasts[coast_next].after_tick < row:
-            c = coasts[coast_next]
-            coast_next += 1
-            sp = driver.coast(c.sample, c.sample_age_s)
-            diff, reasons = _compare_setpoints(c.setpoint, sp, tolerance)
-            coast_diffs.append(diff)
-            if reasons and first_divergence is None:
+        coasts, flight = self.coasts, self.flight
+        while self.coast_next < len(coasts) and coasts[self.coast_next].after_tick < row:
+            c = coasts[self.coast_next]
+            self.coast_next += 1
+            sp = self.driver.coast(c.sample, c.sample_age_s)
+            diff, reasons = _compare_setpoints(c.setpoint, sp, self.tolerance)
+            self.coast_diffs.append(diff)
+            if reasons and self.first_divergence is None:
                 prev = flight.ticks[c.after_tick]
-                first_divergence = {
+                self.first_divergence = {
                     "time_s": float(prev.t_s + (c.time_unix_s - prev.time_unix_s)),
                     "tick": int(prev.tick), "coast": True, "reasons": reasons,
                     **{k: _json_float(v) for k, v in diff.items()},
@@ -300,127 +310,138 @@ def replay_flight(
                     "replayed": {k: _json_float(v) for k, v in _setpoint_fields(sp).items()},
                 }
 
-    # The columns as local names: the loop below runs once per tick of an hour-long log.
-    c_t, c_tick, c_x, c_y = cols["t_s"], cols["tick"], cols["x_enu_m"], cols["y_enu_m"]
-    c_xtrack, c_a_log, c_a_rep = cols["crosstrack_m"], cols["a_logged_m_s2"], cols["a_replayed_m_s2"]
-    c_k1_log, c_k2_log, c_k1_rep, c_k2_rep = cols["k1_logged"], cols["k2_logged"], cols["k1_replayed"], cols["k2_replayed"]
-    c_yr_log, c_yr_rep = cols["yaw_rate_logged_rad_s"], cols["yaw_rate_replayed_rad_s"]
-    c_vx_log, c_vy_log, c_vz_log = cols["vx_logged_m_s"], cols["vy_logged_m_s"], cols["vz_logged_m_s"]
-    c_vx_rep, c_vy_rep, c_vz_rep = cols["vx_replayed_m_s"], cols["vy_replayed_m_s"], cols["vz_replayed_m_s"]
-    c_roll_log, c_roll_rep = cols["roll_logged_rad"], cols["roll_replayed_rad"]
-    c_dyaw, c_dvel, c_datt = cols["yaw_rate_diff_rad_s"], cols["vel_diff_m_s"], cols["attitude_diff_rad"]
-    i_prev, i_prev_cmd = DEBUG_INDEX["prev_course_rad"], DEBUG_INDEX["prev_course_cmd_rad"]
-    i_phase, i_xtrack, i_a = DEBUG_INDEX["phase_code"], DEBUG_INDEX["crosstrack_m"], DEBUG_INDEX["a_cmd_m_s2"]
-    i_k1, i_k2 = DEBUG_INDEX["k1"], DEBUG_INDEX["k2"]
-    n_coasts = len(coasts)
-    isfinite = math.isfinite
+    def run(self, progress: bool | None) -> None:
+        """Every tick in order (and the coasts between them)."""
+        ticks, coasts = self.flight.ticks, self.coasts
+        n, n_coasts = len(ticks), len(coasts)
+        tick = self.tick
+        with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
+            for i, tk in enumerate(ticks):
+                if i % 1024 == 0:
+                    bar.update_to(i)
+                if self.coast_next < n_coasts and coasts[self.coast_next].after_tick < i:
+                    self.coasts_before(i)
+                tick(i, tk)
+            self.coasts_before(n)
+            bar.update_to(n)
 
-    with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
-        for i, tk in enumerate(flight.ticks):
-            if i % 1024 == 0:
-                bar.update_to(i)
-            if coast_next < n_coasts and coasts[coast_next].after_tick < i:
-                replay_coasts_before(i)
-            row = tk.debug
-            if row is not None and isfinite(row[i_prev]):
-                # The loop records the course state each tick was given (it differs from the
-                # carried state when the step was late): use it as the input.
-                prev_course = row[i_prev]
-                cmd = row[i_prev_cmd]
-                prev_course_cmd = cmd if isfinite(cmd) else None
-            else:
-                prev_course, prev_course_cmd = driver.prev_course_rad, driver.prev_course_cmd_rad
-            t_s = _tick_time(tk) if companion_log else tk.t_s
-            res = driver.step(tk.tick, t_s, tk.sample, tk.sample_age_s, tk.yaw_ned_rad, prev_course,
-                              prev_course_cmd)
-            # A companion tick without its setpoint is a late one (recorded, not sent).
-            driver.accept(res, sent=tk.setpoint is not None or not companion_log)
-            sp = res.setpoint
-            out = res.output
-            c_t[i] = tk.t_s
-            c_tick[i] = tk.tick
-            sample = tk.sample
-            if sample is not None:
-                c_x[i] = sample.y_ned_m
-                c_y[i] = sample.x_ned_m
-            if out is not None:
-                c_a_rep[i], c_k1_rep[i], c_k2_rep[i] = out.a_cmd_m_s2, out.k1, out.k2
-            else:
-                c_a_rep[i] = 0.0
-            velocity_out = type(sp) is VelocitySetpoint
-            if velocity_out:
-                c_yr_rep[i], c_vx_rep[i] = sp.yaw_rate_ned_rad_s, sp.vx_ned_m_s
-                c_vy_rep[i], c_vz_rep[i] = sp.vy_ned_m_s, sp.vz_ned_m_s
-            phase_replayed.append(res.phase)
+    def tick(self, i: int, tk: LoggedTick) -> None:
+        """Replay one logged tick and store both sides (runs once per tick of an hour-long log)."""
+        cols, driver, companion_log = self.cols, self.driver, self.companion_log
+        row = tk.debug
+        if row is not None and math.isfinite(row[_I_PREV]):
+            # The loop records the course state each tick was given (it differs from the
+            # carried state when the step was late): use it as the input.
+            prev_course = row[_I_PREV]
+            cmd = row[_I_PREV_CMD]
+            prev_course_cmd = cmd if math.isfinite(cmd) else None
+        else:
+            prev_course, prev_course_cmd = driver.prev_course_rad, driver.prev_course_cmd_rad
+        t_s = _tick_time(tk) if companion_log else tk.t_s
+        res = driver.step(tk.tick, t_s, tk.sample, tk.sample_age_s, tk.yaw_ned_rad, prev_course, prev_course_cmd)
+        # A companion tick without its setpoint is a late one (recorded, not sent).
+        driver.accept(res, sent=tk.setpoint is not None or not companion_log)
+        sp = res.setpoint
+        out = res.output
+        cols["t_s"][i] = tk.t_s
+        cols["tick"][i] = tk.tick
+        sample = tk.sample
+        if sample is not None:
+            cols["x_enu_m"][i] = sample.y_ned_m
+            cols["y_enu_m"][i] = sample.x_ned_m
+        if out is not None:
+            cols["a_replayed_m_s2"][i], cols["k1_replayed"][i], cols["k2_replayed"][i] = out.a_cmd_m_s2, out.k1, out.k2
+        else:
+            cols["a_replayed_m_s2"][i] = 0.0
+        if type(sp) is VelocitySetpoint:
+            cols["yaw_rate_replayed_rad_s"][i], cols["vx_replayed_m_s"][i] = sp.yaw_rate_ned_rad_s, sp.vx_ned_m_s
+            cols["vy_replayed_m_s"][i], cols["vz_replayed_m_s"][i] = sp.vy_ned_m_s, sp.vz_ned_m_s
+        self.phase_replayed.append(res.phase)
+        if companion_log:
+            self.phase_logged.append(phase_name(row[_I_PHASE]))
+            cols["crosstrack_m"][i], cols["a_logged_m_s2"][i] = row[_I_XTRACK], row[_I_A]
+            cols["k1_logged"][i], cols["k2_logged"][i] = row[_I_K1], row[_I_K2]
+        else:
+            self._other_log_tick(i, tk, res.phase)
+        if tk.setpoint is None:
+            return
+        reasons = self._compare(i, tk.setpoint, sp)
+        self.compared[i] = True
+        if companion_log and self.phase_logged[-1] != res.phase:
+            reasons.append("phase")
+        if reasons and self.first_divergence is None:
+            self.first_divergence = _divergence(tk, i, cols, self.phase_logged[-1], res.phase, reasons,
+                                                companion_log)
 
-            logged = tk.setpoint
-            if companion_log:
-                phase_logged.append(phase_name(row[i_phase]))
-                c_xtrack[i], c_a_log[i] = row[i_xtrack], row[i_a]
-                c_k1_log[i], c_k2_log[i] = row[i_k1], row[i_k2]
-            else:
-                phase_logged.append(res.phase)
-                if sample is not None:
-                    x, y = sample.y_ned_m, sample.x_ned_m
-                    s_hint = path.project(x, y, s_hint)
-                    c_xtrack[i] = path.crosstrack_m(x, y, s_hint)
-                if logged is not None:
-                    speed_h = math.hypot(logged.vx_ned_m_s, logged.vy_ned_m_s)
-                    c_a_log[i] = -logged.yaw_rate_ned_rad_s * speed_h
-            if logged is None:
-                continue
-            if velocity_out and type(logged) is LoggedSetpoint:
-                # The common case, written out (_compare_setpoints is the general one).
-                c_yr_log[i], c_vx_log[i] = logged.yaw_rate_ned_rad_s, logged.vx_ned_m_s
-                c_vy_log[i], c_vz_log[i] = logged.vy_ned_m_s, logged.vz_ned_m_s
-                d_yaw = abs(logged.yaw_rate_ned_rad_s - sp.yaw_rate_ned_rad_s)
-                dx = logged.vx_ned_m_s - sp.vx_ned_m_s
-                dy = logged.vy_ned_m_s - sp.vy_ned_m_s
-                dz = logged.vz_ned_m_s - sp.vz_ned_m_s
-                d_vel = math.sqrt(dx * dx + dy * dy + dz * dz)
-                if d_yaw != d_yaw or d_vel != d_vel:  # NaN on a side: _absdiff's rule
-                    diff, _ = _compare_setpoints(logged, sp, tolerance)
-                    d_yaw, d_vel = diff["yaw_rate_diff_rad_s"], diff["vel_diff_m_s"]
-                c_dyaw[i], c_dvel[i] = d_yaw, d_vel
-                reasons = []
-                if not d_yaw <= tol_yaw:
-                    reasons.append("yaw_rate")
-                if not d_vel <= tol_vel:
-                    reasons.append("velocity")
-            else:
-                fields = _setpoint_fields(logged)
-                c_yr_log[i], c_vx_log[i] = fields["yaw_rate_rad_s"], fields["vx_m_s"]
-                c_vy_log[i], c_vz_log[i] = fields["vy_m_s"], fields["vz_m_s"]
-                c_roll_log[i] = fields["roll_rad"]
-                if isinstance(sp, AttitudeSetpoint):
-                    c_roll_rep[i] = sp.roll_ned_rad
-                diff, reasons = _compare_setpoints(logged, sp, tolerance)
-                c_dyaw[i], c_dvel[i], c_datt[i] = (diff["yaw_rate_diff_rad_s"], diff["vel_diff_m_s"],
-                                                   diff["attitude_diff_rad"])
-            compared[i] = True
-            if companion_log and phase_logged[-1] != res.phase:
-                reasons.append("phase")
-            if reasons and first_divergence is None:
-                first_divergence = _divergence(tk, i, cols, phase_logged[-1], res.phase, reasons,
-                                               companion_log)
-        replay_coasts_before(n)
-        bar.update_to(n)
+    def _other_log_tick(self, i: int, tk: LoggedTick, phase: str) -> None:
+        """A log the companion did not write: the flight's own cross-track and acceleration."""
+        cols = self.cols
+        self.phase_logged.append(phase)
+        sample, logged = tk.sample, tk.setpoint
+        if sample is not None:
+            x, y = sample.y_ned_m, sample.x_ned_m
+            self.s_hint = self.path.project(x, y, self.s_hint)
+            cols["crosstrack_m"][i] = self.path.crosstrack_m(x, y, self.s_hint)
+        if logged is not None:
+            speed_h = math.hypot(logged.vx_ned_m_s, logged.vy_ned_m_s)
+            cols["a_logged_m_s2"][i] = -logged.yaw_rate_ned_rad_s * speed_h
 
-    cols = {name: np.array(values, dtype=float) for name, values in cols.items()}
-    cols["compared"] = np.array(compared, dtype=bool)
-    per_phase = _per_phase(cols, phase_logged if companion_log else phase_replayed)
-    if coast_diffs:
-        per_phase["coast"] = _per_phase(
-            {**{k: np.array([d[k] for d in coast_diffs]) for k in coast_diffs[0]},
-             "compared": np.ones(len(coast_diffs), dtype=bool)}, ["coast"] * len(coast_diffs))["coast"]
-    switches = {"logged": _switches(cols["t_s"], phase_logged) if companion_log else [],
-                "replayed": _switches(cols["t_s"], phase_replayed)}
-    tracking = _tracking(cols, phase_logged)
-    cols["phase_logged"] = np.asarray(phase_logged, dtype=object)
-    cols["phase_replayed"] = np.asarray(phase_replayed, dtype=object)
-    return ReplayResult(flight, mission.name, tolerance, cols, first_divergence, per_phase, switches,
-                        tracking, {"replay_s": time.perf_counter() - started}, mission.path,
-                        rate_hz)
+    def _compare(self, i: int, logged: LoggedSetpoint | LoggedAttitude,
+                 sp: VelocitySetpoint | AttitudeSetpoint) -> list[str]:
+        """Store the logged setpoint and the differences; the tolerances broken."""
+        cols, tolerance = self.cols, self.tolerance
+        if type(sp) is VelocitySetpoint and type(logged) is LoggedSetpoint:
+            # The common case, written out (_compare_setpoints is the general one).
+            cols["yaw_rate_logged_rad_s"][i], cols["vx_logged_m_s"][i] = logged.yaw_rate_ned_rad_s, logged.vx_ned_m_s
+            cols["vy_logged_m_s"][i], cols["vz_logged_m_s"][i] = logged.vy_ned_m_s, logged.vz_ned_m_s
+            d_yaw = abs(logged.yaw_rate_ned_rad_s - sp.yaw_rate_ned_rad_s)
+            dx = logged.vx_ned_m_s - sp.vx_ned_m_s
+            dy = logged.vy_ned_m_s - sp.vy_ned_m_s
+            dz = logged.vz_ned_m_s - sp.vz_ned_m_s
+            d_vel = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if d_yaw != d_yaw or d_vel != d_vel:  # NaN on a side: _absdiff's rule
+                diff, _ = _compare_setpoints(logged, sp, tolerance)
+                d_yaw, d_vel = diff["yaw_rate_diff_rad_s"], diff["vel_diff_m_s"]
+            cols["yaw_rate_diff_rad_s"][i], cols["vel_diff_m_s"][i] = d_yaw, d_vel
+            reasons = []
+            if not d_yaw <= tolerance.yaw_rate_rad_s:
+                reasons.append("yaw_rate")
+            if not d_vel <= tolerance.vel_m_s:
+                reasons.append("velocity")
+            return reasons
+        fields = _setpoint_fields(logged)
+        cols["yaw_rate_logged_rad_s"][i], cols["vx_logged_m_s"][i] = fields["yaw_rate_rad_s"], fields["vx_m_s"]
+        cols["vy_logged_m_s"][i], cols["vz_logged_m_s"][i] = fields["vy_m_s"], fields["vz_m_s"]
+        cols["roll_logged_rad"][i] = fields["roll_rad"]
+        if isinstance(sp, AttitudeSetpoint):
+            cols["roll_replayed_rad"][i] = sp.roll_ned_rad
+        diff, reasons = _compare_setpoints(logged, sp, tolerance)
+        cols["yaw_rate_diff_rad_s"][i], cols["vel_diff_m_s"][i], cols["attitude_diff_rad"][i] = (
+            diff["yaw_rate_diff_rad_s"], diff["vel_diff_m_s"], diff["attitude_diff_rad"])
+        return reasons
+
+    def result(self, mission: Mission, tolerance: Tolerance, rate_hz: float, replay_s: float) -> ReplayResult:
+        """The series as arrays, the per-phase figures, the phase switches and the flight's tracking."""
+        phase_logged, phase_replayed, coast_diffs = self.phase_logged, self.phase_replayed, self.coast_diffs
+        cols: dict[str, np.ndarray] = {name: np.array(values, dtype=float) for name, values in self.cols.items()}
+        cols["compared"] = np.array(self.compared, dtype=bool)
+        per_phase = _per_phase(cols, phase_logged if self.companion_log else phase_replayed)
+        if coast_diffs:
+            per_phase["coast"] = _per_phase(
+                {**{k: np.array([d[k] for d in coast_diffs]) for k in coast_diffs[0]},
+                 "compared": np.ones(len(coast_diffs), dtype=bool)}, ["coast"] * len(coast_diffs))["coast"]
+        switches = {"logged": _switches(cols["t_s"], phase_logged) if self.companion_log else [],
+                    "replayed": _switches(cols["t_s"], phase_replayed)}
+        tracking = _tracking(cols, phase_logged)
+        cols["phase_logged"] = np.asarray(phase_logged, dtype=object)
+        cols["phase_replayed"] = np.asarray(phase_replayed, dtype=object)
+        return ReplayResult(self.flight, mission.name, tolerance, cols, self.first_divergence, per_phase, switches,
+                            tracking, {"replay_s": replay_s}, mission.path, rate_hz)
+
+
+_I_PREV, _I_PREV_CMD = DEBUG_INDEX["prev_course_rad"], DEBUG_INDEX["prev_course_cmd_rad"]
+_I_PHASE, _I_XTRACK, _I_A = DEBUG_INDEX["phase_code"], DEBUG_INDEX["crosstrack_m"], DEBUG_INDEX["a_cmd_m_s2"]
+_I_K1, _I_K2 = DEBUG_INDEX["k1"], DEBUG_INDEX["k2"]
 
 
 def _compare_setpoints(logged, sp, tolerance: Tolerance) -> tuple[dict, list[str]]:
