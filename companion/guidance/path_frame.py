@@ -20,7 +20,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from companion.geometry.frames import wrap_pi as wrap_pi  # re-exported for the laws
+from companion.geometry.frames import wrap_pi as wrap_pi
+from companion.guidance.types import GuidanceOutput  # re-exported for the laws
 
 class PathLike(Protocol):
     """The documented path contract the laws use (``docs/architecture.md``, "Path").
@@ -167,6 +168,20 @@ def goal_point(path: PathLike, x_m: float, y_m: float, l_m: float, s_from_m: flo
     wt = wx * tx + wy * ty
     u = -wt + math.sqrt(max(wt * wt - w2 + l_m * l_m, 0.0))
     return ex + u * tx, ey + u * ty
+
+
+def frame_output(path: PathLike, f: PathFrame, a_cmd_m_s2: float, lookahead_xy_m: tuple[float, float] | None,
+                 extra: dict[str, Any], reoptimised: bool = False) -> GuidanceOutput:
+    """A law's close-range output at the frame ``f`` (``finished`` once the path's end is reached)."""
+    return GuidanceOutput(
+        a_cmd_m_s2=a_cmd_m_s2,
+        phase="finished" if is_finished(path, f.s_m) else "close_range",
+        crosstrack_m=f.crosstrack_m,
+        s_proj_m=f.s_m,
+        lookahead_xy_m=lookahead_xy_m,
+        reoptimised=reoptimised,
+        extra=extra,
+    )
 
 
 def is_finished(path: PathLike, s_m: float) -> bool:

@@ -54,7 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from companion.guidance.path_frame import is_finished, path_frame
+from companion.guidance.path_frame import frame_output, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)
@@ -485,13 +485,6 @@ class PredictiveGuidance:
         correction = float(self._plan[seg])
         a_cmd = min(max(float(a[0]) + correction, -p.a_max_m_s2), p.a_max_m_s2)
         self._last_cmd = a_cmd
-        phase = "finished" if is_finished(self.path, f.s_m) else "close_range"
-        return GuidanceOutput(
-            a_cmd_m_s2=a_cmd,
-            phase=phase,
-            crosstrack_m=f.crosstrack_m,
-            s_proj_m=f.s_m,
-            lookahead_xy_m=(float(gx[0]), float(gy[0])),
-            reoptimised=reoptimised,
-            extra={"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat},
-        )
+        return frame_output(self.path, f, a_cmd, (float(gx[0]), float(gy[0])),
+                            {"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat},
+                            reoptimised)

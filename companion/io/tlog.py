@@ -36,6 +36,22 @@ def default_tlog_path(directory: str | os.PathLike = "logs", now: _dt.datetime |
     return Path(directory) / f"flight-{now.strftime('%Y%m%d-%H%M%S')}.tlog"
 
 
+#: The mission a flight used is written beside its tlog as ``<tlog>.mission.yaml``.
+MISSION_SUFFIX = ".mission.yaml"
+
+
+def mission_path_beside(tlog_path: str | os.PathLike) -> Path:
+    """``<tlog>.mission.yaml``: where a flight's mission is written, and where replay looks first."""
+    return Path(str(tlog_path) + MISSION_SUFFIX)
+
+
+def write_mission_beside(tlog_path: str | os.PathLike, source_text: str) -> Path:
+    """Write the mission's text beside the tlog (:func:`mission_path_beside`)."""
+    out = mission_path_beside(tlog_path)
+    out.write_text(source_text, encoding="utf-8")
+    return out
+
+
 class TlogWriter:
     """Append timestamped MAVLink packets to a tlog file."""
 

@@ -40,7 +40,7 @@ from companion.errors import CompanionError, FlightAborted, LinkError
 from companion.geometry import frames
 from companion.guidance.types import GuidanceLaw
 from companion.io.link import MAV_CMD_SET_MESSAGE_INTERVAL, MSG_ID_ATTITUDE, MSG_ID_LOCAL_POSITION_NED, MavLink
-from companion.io.tlog import TlogWriter, default_tlog_path
+from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_beside
 from companion.loop.driver import make_guidance
 from companion.loop.flight import AutopilotClock, FlightLoop, FlightRecord
 from companion.loop.profiles import AutopilotProfile, profile_for
@@ -115,10 +115,6 @@ def distance_to_path_m(path, x_m: float, y_m: float, n: int = 4000) -> float:
     return float(np.min(np.hypot(xs - x_m, ys - y_m)))
 
 
-def write_mission_beside(tlog_path: Path, mission) -> Path:
-    out = Path(str(tlog_path) + ".mission.yaml")
-    out.write_text(mission.source_text or "", encoding="utf-8")
-    return out
 
 
 
@@ -167,7 +163,7 @@ class FlightRunner:
 
     def _open(self) -> LinkSession:
         self.tlog = TlogWriter(self.tlog_path).open()
-        write_mission_beside(self.tlog_path, self.mission)
+        write_mission_beside(self.tlog_path, self.mission.source_text or "")
         self.link = MavLink(
             self.opt.connect,
             source_system=self.opt.source_system,

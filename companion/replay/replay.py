@@ -42,6 +42,7 @@ import numpy as np
 from companion.errors import LogError
 from companion.guidance.types import GuidanceLaw
 from companion.io.logread import LogWarning
+from companion.io.tlog import MISSION_SUFFIX, mission_path_beside
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.loop.driver import TickDriver, make_guidance
 from companion.loop.tick import DEFAULT_STALE_S, TickConfig
@@ -59,7 +60,6 @@ from companion.replay.flightlog import (
 from companion.replay.progress import ByteProgress
 from companion.sim.metrics import tracking_metrics
 
-MISSION_SUFFIX = ".mission.yaml"
 
 
 @dataclass(frozen=True)
@@ -142,7 +142,7 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
     if mission is not None:
         return Path(mission)
     tlog = Path(tlog)
-    for candidate in (Path(str(tlog) + MISSION_SUFFIX), tlog.with_suffix(".yaml")):
+    for candidate in (mission_path_beside(tlog), tlog.with_suffix(".yaml")):
         if candidate.is_file():
             return candidate
     raise LogError(f"{tlog}: no mission recorded beside the log (expected {tlog.name}{MISSION_SUFFIX}); "

@@ -32,12 +32,15 @@ import math
 import struct
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 from companion.geometry import frames, geodetic
 from companion.io.logread import PacketEncoder
+from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.io.state import PositionSample
-from companion.io.tlog import TlogWriter
+from companion.io.tlog import TlogWriter, write_mission_beside
 from companion.loop.driver import TickDriver, make_guidance
 from companion.loop.tick import DEFAULT_STALE_S, TickConfig, TickResult
 from companion.mission import Mission, parse_mission
@@ -95,12 +98,90 @@ def _float32(*values: float) -> tuple[float, ...]:
         struct.unpack("<f", struct.pack("<f", v))[0] for v in values)
 
 
+@dataclass
+class _Vehicle:
+    """The kinematic vehicle of a synthetic flight (ENU metres, m/s; altitude held)."""
+
+    x: float
+    y: float
+    ve: float
+    vn: float
+    alt: float
+    dt: float
+    alpha: float  # the velocity's first-order lag over one tick (1: none)
+
+    @classmethod
+    def at_start(cls, mission: Mission, offset_m: tuple[float, float], dt: float, lag_s: float) -> _Vehicle:
+        """At ``offset_m`` from the path's start, flying along it at the mission's speed."""
+        (x0, y0), heading = mission.path.start_xy_m, mission.path.start_heading_rad
+        speed = mission.speed_m_s
+        return cls(x0 + offset_m[0], y0 + offset_m[1], speed * math.cos(heading), speed * math.sin(heading),
+                   mission.altitude_m, dt, 1.0 - math.exp(-dt / lag_s) if lag_s > 0 else 1.0)
+
+    def follow(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
+        """One tick of the vehicle under the setpoint just sent."""
+        if isinstance(sp, AttitudeSetpoint):
+            # coordinated turn at the commanded bank (NED roll: right wing down positive)
+            speed = math.hypot(self.ve, self.vn)
+            omega = G_M_S2 * math.tan(-sp.roll_ned_rad) / speed if speed > 0 else 0.0
+            course = math.atan2(self.vn, self.ve) + omega * self.dt
+            self.ve, self.vn = speed * math.cos(course), speed * math.sin(course)
+        else:
+            # the vehicle follows the commanded horizontal velocity with a first-order lag
+            cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
+            self.ve += self.alpha * (cmd_ve - self.ve)
+            self.vn += self.alpha * (cmd_vn - self.vn)
+        self.x += self.ve * self.dt
+        self.y += self.vn * self.dt
+
+
+def _write_telemetry(tlog: TlogWriter, autopilot: PacketEncoder, companion: PacketEncoder, k: int, rate_hz: float,
+                     boot_ms: int, unix_s: float, v: _Vehicle) -> None:
+    """The heartbeats and the autopilot's other streams due at tick ``k`` (they only fill the log)."""
+    if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["HEARTBEAT"]):
+        tlog.write(autopilot.heartbeat_packet(MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                              GUIDED_ARMED_BASE_MODE, COPTER_GUIDED), unix_s - 0.002)
+        tlog.write(companion.heartbeat_packet(MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID), unix_s - 0.001)
+    at_unix_s = unix_s - 0.003
+    speed = math.hypot(v.ve, v.vn)
+    course_deg = math.degrees(math.atan2(v.ve, v.vn)) % 360.0
+    alt = v.alt
+    if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GLOBAL_POSITION_INT"]) or \
+            _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GPS_RAW_INT"]):
+        lat, lon, _ = (float(c) for c in geodetic.geodetic_from_enu(
+            v.x, v.y, alt, ORIGIN_LAT_DEG, ORIGIN_LON_DEG, ORIGIN_ALT_M))
+    if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GLOBAL_POSITION_INT"]):
+        tlog.write(autopilot.global_position_int_packet(boot_ms, lat, lon, ORIGIN_ALT_M + alt, alt, v.vn, v.ve,
+                                                        0.0, course_deg), at_unix_s)
+    if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GPS_RAW_INT"]):
+        tlog.write(autopilot.gps_raw_int_packet(boot_ms * 1000, lat, lon, ORIGIN_ALT_M + alt, speed,
+                                                course_deg), at_unix_s)
+    if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["VFR_HUD"]):
+        tlog.write(autopilot.vfr_hud_packet(speed, speed, course_deg, 45, ORIGIN_ALT_M + alt, 0.0), at_unix_s)
+    if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["SYS_STATUS"]):
+        tlog.write(autopilot.sys_status_packet(12_400, 1_250, 80), at_unix_s)
+
+
+def _write_row(tlog: TlogWriter, companion: PacketEncoder, unix_s: float, result: TickResult, sent: bool) -> None:
+    """A finished step's guidance row: a fresh one just before its setpoint, a late one earlier."""
+    time_usec = result.sample.time_boot_ms * 1000 if result.sample is not None else 0
+    tlog.write(companion.debug_float_array_packet("guidance", result.tick, time_usec, result.debug),
+               unix_s + (20e-6 if sent else 10e-6))
+
+
 class _SlowStep:
     """A finished step that reports itself done only after ``waits`` waits (a slow step in flight)."""
 
     def __init__(self, result: TickResult, waits: int):
         self._result = result
         self._waits = waits
+
+    @classmethod
+    def run(cls, coast_ticks: int, call: Callable[[], TickResult]) -> _SlowStep:
+        """Run the step now; a re-optimisation (with ``coast_ticks``) is held back that many ticks."""
+        res = call()
+        slow = coast_ticks and res.output is not None and res.output.reoptimised
+        return cls(res, coast_ticks if slow else 0)
 
     def result(self, timeout: float | None = None) -> TickResult:
         if self._waits > 0:
@@ -136,116 +217,56 @@ def write_synthetic_flight(
         keeps the last sample, ageing, and holds once it is older than ``stale_s``).
     stale_s : the loop's stale-position limit (the runner's ``--stale-s``).
     coast_ticks : when > 0, every step that re-optimises k1, k2 is taken to last that many extra
-        ticks, as a slow step does in the runner's worker thread: its tick and the next
-        ``coast_ticks - 1`` send :func:`companion.loop.tick.coast_setpoint`, then its row is
-        recorded late and that tick is computed afresh.
+        ticks, as a slow step in the flight loop's worker: it coasts, then its row is recorded
+        late and that tick is computed afresh (:meth:`TickDriver.run_tick`).
 
-    Returns
-    -------
-    dict with ``ticks``, ``records`` and ``generate_s``.
+    Returns a dict with ``ticks``, ``records`` and ``generate_s``.
     """
     started = time.perf_counter()
     if isinstance(mission, str):
         mission = parse_mission(mission, "<synthetic>")
-    tlog_path = Path(tlog_path)
-    Path(str(tlog_path) + ".mission.yaml").write_text(mission.source_text, encoding="utf-8")
+    write_mission_beside(tlog_path, mission.source_text)
     guidance = make_guidance(mission, rate_hz)
     config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
                         output=output, stale_s=stale_s)
     dt = 1.0 / rate_hz
-    autopilot = PacketEncoder(1, 1)
-    companion = PacketEncoder(1, 191)
+    autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
 
-    x0, y0 = mission.path.start_xy_m
-    heading = mission.path.start_heading_rad
-    x, y = x0 + start_offset_m[0], y0 + start_offset_m[1]
-    ve, vn = mission.speed_m_s * math.cos(heading), mission.speed_m_s * math.sin(heading)
-    alt = mission.altitude_m
-    driver = TickDriver(guidance, config, heading)
+    v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s)
+    driver = TickDriver(guidance, config, mission.path.start_heading_rad)
     n_ticks = int(round(duration_s * rate_hz))
-    alpha = 1.0 - math.exp(-dt / vehicle_lag_s) if vehicle_lag_s > 0 else 1.0
-
-
-    def slow_steps(call):
-        """Run the step now; a re-optimisation (with ``coast_ticks``) is held back that many ticks."""
-        res = call()
-        slow = coast_ticks and res.output is not None and res.output.reoptimised
-        return _SlowStep(res, coast_ticks if slow else 0)
+    slow_steps = functools.partial(_SlowStep.run, coast_ticks)
 
     with TlogWriter(tlog_path, min_free_bytes=0) as tlog:
-
-        def write_telemetry(k: int, boot_ms: int, at_unix_s: float) -> None:
-            """The autopilot's other streams due at tick ``k`` (they only fill the log)."""
-            speed = math.hypot(ve, vn)
-            course_deg = math.degrees(math.atan2(ve, vn)) % 360.0
-            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GLOBAL_POSITION_INT"]) or \
-                    _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GPS_RAW_INT"]):
-                lat, lon, _ = (float(v) for v in geodetic.geodetic_from_enu(
-                    x, y, alt, ORIGIN_LAT_DEG, ORIGIN_LON_DEG, ORIGIN_ALT_M))
-            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GLOBAL_POSITION_INT"]):
-                tlog.write(autopilot.global_position_int_packet(boot_ms, lat, lon, ORIGIN_ALT_M + alt, alt, vn, ve,
-                                                                0.0, course_deg), at_unix_s)
-            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["GPS_RAW_INT"]):
-                tlog.write(autopilot.gps_raw_int_packet(boot_ms * 1000, lat, lon, ORIGIN_ALT_M + alt, speed,
-                                                        course_deg), at_unix_s)
-            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["VFR_HUD"]):
-                tlog.write(autopilot.vfr_hud_packet(speed, speed, course_deg, 45, ORIGIN_ALT_M + alt, 0.0), at_unix_s)
-            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["SYS_STATUS"]):
-                tlog.write(autopilot.sys_status_packet(12_400, 1_250, 80), at_unix_s)
-
-        def record_row(unix_s: float, result: TickResult, sent: bool) -> None:
-            """A finished step's row: a fresh one just before its setpoint, a late one earlier."""
-            write_row(result, unix_s + (20e-6 if sent else 10e-6))
-
-        def write_row(result: TickResult, at_unix_s: float) -> None:
-            time_usec = result.sample.time_boot_ms * 1000 if result.sample is not None else 0
-            tlog.write(companion.debug_float_array_packet("guidance", result.tick, time_usec, result.debug),
-                       at_unix_s)
-
         for k in range(n_ticks):
             t_grid = k * dt
             unix = START_UNIX_S + t_grid
             boot_ms = BOOT_MS_AT_START + int(round(t_grid * 1000.0))
-            if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["HEARTBEAT"]):
-                tlog.write(autopilot.heartbeat_packet(MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_ARDUPILOTMEGA,
-                                                      GUIDED_ARMED_BASE_MODE, COPTER_GUIDED), unix - 0.002)
-                tlog.write(companion.heartbeat_packet(MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID),
-                           unix - 0.001)
-            write_telemetry(k, boot_ms, unix - 0.003)
+            _write_telemetry(tlog, autopilot, companion, k, rate_hz, boot_ms, unix, v)
             # the autopilot's sample, as it crosses the wire (float32)
             if dropout_s is None or not (dropout_s[0] <= t_grid < dropout_s[1]):
-                fields = _float32(y, x, -alt, vn, ve, 0.0)
+                fields = _float32(v.y, v.x, -v.alt, v.vn, v.ve, 0.0)
                 tlog.write(autopilot.local_position_ned_packet(boot_ms, *fields), unix - SAMPLE_AGE_S)
                 sample = PositionSample(boot_ms, *fields)
                 sample_t = t_grid
             if _due(k, rate_hz, TELEMETRY_STREAMS_HZ["ATTITUDE"]):
-                yaw_ned = frames.yaw_ned_from_enu(math.atan2(vn, ve))
+                yaw_ned = frames.yaw_ned_from_enu(math.atan2(v.vn, v.ve))
                 tlog.write(autopilot.attitude_packet(boot_ms, 0.0, 0.0, yaw_ned), unix - SAMPLE_AGE_S / 2)
                 yaw_seen = _float32(yaw_ned)[0]
             t_s = t_grid + TICK_JITTER_S * math.sin(0.7 * k)
             age = SAMPLE_AGE_S + (t_grid - sample_t)
             tick_out = driver.run_tick(t_s, t_s, sample, age, yaw_seen, slow_steps, 0.0,
-                                       functools.partial(record_row, unix))
+                                       functools.partial(_write_row, tlog, companion, unix))
             sp = tick_out.setpoint
             # as the runner: the tick's guidance row, then its setpoint; a coast after the budget
             sent_at = unix + 40e-6 if tick_out.result is not None else unix + 0.5 * dt
             if output == "attitude":
                 tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), sent_at)
-                # coordinated turn at the commanded bank (NED roll: right wing down positive)
-                speed = math.hypot(ve, vn)
-                omega = G_M_S2 * math.tan(-sp.roll_ned_rad) / speed if speed > 0 else 0.0
-                course = math.atan2(vn, ve) + omega * dt
-                ve, vn = speed * math.cos(course), speed * math.sin(course)
             else:
                 tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
                                                               sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
                                                               sp.yaw_rate_ned_rad_s), sent_at)
-                # the vehicle follows the commanded horizontal velocity with a first-order lag
-                cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
-                ve += alpha * (cmd_ve - ve)
-                vn += alpha * (cmd_vn - vn)
-            x += ve * dt
-            y += vn * dt
+            v.follow(sp)
         records = tlog.records
     return {"ticks": n_ticks, "records": records, "generate_s": time.perf_counter() - started}
 

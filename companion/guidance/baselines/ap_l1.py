@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.path_frame import PathLike, goal_point, is_finished, path_frame, wrap_pi
+from companion.guidance.path_frame import frame_output, PathLike, goal_point, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 CAPTURE_LIMIT_RAD = math.pi / 4.0  # ArduPilot: sine_Nu1 constrained to +-0.7071
@@ -144,12 +144,5 @@ class ApL1Guidance:
         nu = capture + self._xtrack_i_rad + curve_part + nu2
         nu = min(max(nu, -NU_LIMIT_RAD), NU_LIMIT_RAD)
         a_cmd = p.gain * v * v / l1 * math.sin(nu)
-        phase = "finished" if is_finished(self.path, f.s_m) else "close_range"
-        return GuidanceOutput(
-            a_cmd_m_s2=a_cmd,
-            phase=phase,
-            crosstrack_m=f.crosstrack_m,
-            s_proj_m=f.s_m,
-            lookahead_xy_m=l1_xy,
-            extra={"l1_m": l1, "nu_rad": nu, "xtrack_i_rad": self._xtrack_i_rad},
-        )
+        return frame_output(self.path, f, a_cmd, l1_xy,
+                            {"l1_m": l1, "nu_rad": nu, "xtrack_i_rad": self._xtrack_i_rad})

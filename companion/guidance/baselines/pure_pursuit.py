@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from companion.guidance.path_frame import PathLike, goal_point, is_finished, path_frame, wrap_pi
+from companion.guidance.path_frame import frame_output, PathLike, goal_point, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
 
@@ -78,12 +78,4 @@ class PurePursuitGuidance:
             alpha = wrap_pi(math.atan2(dy, dx) - state.course_rad)
             # gamma = 2 x_lat / L^2 with x_lat = dist sin(alpha), over the actual goal distance.
             a_cmd = v * v * 2.0 * math.sin(alpha) / dist
-        phase = "finished" if is_finished(self.path, f.s_m) else "close_range"
-        return GuidanceOutput(
-            a_cmd_m_s2=a_cmd,
-            phase=phase,
-            crosstrack_m=f.crosstrack_m,
-            s_proj_m=f.s_m,
-            lookahead_xy_m=(gx, gy),
-            extra={"lookahead_m": ld},
-        )
+        return frame_output(self.path, f, a_cmd, (gx, gy), {"lookahead_m": ld})
