@@ -59,6 +59,9 @@ PROJECT_WINDOW_MIN_M = 2.0
 LOOKAHEAD_STRIDE_M = 0.5
 
 
+# Over 300 lines on purpose: this is the whole path contract of docs/architecture.md (point,
+# tangent, curvature, project, lookahead, ...) over one set of arc-length tables; every method
+# reads the same tables, and the laws rely on finding the contract in one object.
 class Path:
     """A C^2 planar path parameterised by arc length ``s_m`` in ``[0, length_m]``.
 

@@ -309,6 +309,9 @@ class _TlogTap:
         self.link.sent += 1
 
 
+# Over 300 lines on purpose: the one pymavlink adapter (as mavutil's connection is one object):
+# parsing, pairing, validation, commands and setpoints share the connection, the parser and the
+# signing state. The transports and the vehicle state types already live outside it.
 class MavLink:
     """A MAVLink connection to one autopilot, with pairing, filtering, signing and a tlog.
 
