@@ -297,34 +297,36 @@ def debug_row(result: TickResult) -> list[float]:
         a = out.a_cmd_m_s2 if out is not None else 0.0
         yaw_rate_enu = a / result.state.speed_m_s if result.state is not None else 0.0
         roll = sp.roll_ned_rad
-    row = [
-        float(result.tick),
-        float(result.t_s),
-        float(result.phase_code),
-        float(out.a_cmd_m_s2) if out is not None else 0.0,
-        float(out.crosstrack_m) if out is not None else nan,
-        float(out.s_proj_m) if out is not None else nan,
-        float(out.k1) if out is not None else nan,
-        float(out.k2) if out is not None else nan,
-        float(result.state.x_m) if result.state is not None else nan,
-        float(result.state.y_m) if result.state is not None else nan,
-        float(result.course_rad),
-        float(result.state.speed_m_s) if result.state is not None else nan,
-        float(yaw_rate_enu),
-        float(vn),
-        float(ve),
-        float(vd),
-        1.0 if (out is not None and out.reoptimised) else 0.0,
-        float(result.sample_age_s),
-        float(ground_speed_m_s),
-        float(HOLD_REASON_CODES[result.hold_reason]),
-        float(roll),
-        float(alt_m),
-        float(result.course_cmd_rad),
-        float(result.prev_course_cmd_rad),
-        float(result.prev_course_rad),
-        float(result.t_s) - _float32(result.t_s),
-        1.0,
-    ]
-    assert len(row) == len(DEBUG_FIELDS)
-    return row
+    state = result.state
+    values = {  # by name: DEBUG_FIELDS gives the order
+        "tick": float(result.tick),
+        "t_s": float(result.t_s),
+        "phase_code": float(result.phase_code),
+        "a_cmd_m_s2": float(out.a_cmd_m_s2) if out is not None else 0.0,
+        "crosstrack_m": float(out.crosstrack_m) if out is not None else nan,
+        "s_proj_m": float(out.s_proj_m) if out is not None else nan,
+        "k1": float(out.k1) if out is not None else nan,
+        "k2": float(out.k2) if out is not None else nan,
+        "x_enu_m": float(state.x_m) if state is not None else nan,
+        "y_enu_m": float(state.y_m) if state is not None else nan,
+        "course_enu_rad": float(result.course_rad),
+        "speed_m_s": float(state.speed_m_s) if state is not None else nan,
+        "yaw_rate_cmd_rad_s": float(yaw_rate_enu),
+        "vn_cmd_m_s": float(vn),
+        "ve_cmd_m_s": float(ve),
+        "vd_cmd_m_s": float(vd),
+        "reoptimised": 1.0 if (out is not None and out.reoptimised) else 0.0,
+        "sample_age_s": float(result.sample_age_s),
+        "ground_speed_m_s": float(ground_speed_m_s),
+        "hold_reason": float(HOLD_REASON_CODES[result.hold_reason]),
+        "roll_cmd_rad": float(roll),
+        "alt_m": float(alt_m),
+        "course_cmd_enu_rad": float(result.course_cmd_rad),
+        "prev_course_cmd_rad": float(result.prev_course_cmd_rad),
+        "prev_course_rad": float(result.prev_course_rad),
+        "t_s_residual": float(result.t_s) - _float32(result.t_s),
+        "setpoint_sent": 1.0,
+    }
+    if len(values) != len(DEBUG_FIELDS):
+        raise AssertionError(f"debug_row: {sorted(set(values) ^ set(DEBUG_FIELDS))}")
+    return [values[name] for name in DEBUG_FIELDS]

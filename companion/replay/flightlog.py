@@ -158,6 +158,8 @@ def _sample_from_debug(row: list[float], time_boot_ms: int) -> PositionSample | 
                           speed * math.sin(course), speed * math.cos(course), 0.0)
 
 
+# Over 80 lines on purpose: one pass over an hour's log (millions of records), every piece of
+# state a local of this frame; a helper call per record costs a measurable share of the read.
 def read_flight(
     path: str | Path,
     on_warning: Callable[[LogWarning], None] | None = None,

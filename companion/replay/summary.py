@@ -109,39 +109,8 @@ def summarise_log(
     if first_time is None:
         raise LogError(f"{path}: no MAVLink records could be read ({reader.size_bytes} bytes)")
 
-    systems = []
-    link_gaps = []
-    for source in sorted(times_by_source):
-        times = np.asarray(times_by_source[source])
-        intervals = np.diff(times)
-        sparse = bool(intervals.size == 0 or np.median(intervals) > gap_threshold_s)
-        mav_type, autopilot = identity.get(source, (None, None))
-        systems.append({
-            "system": source[0],
-            "component": source[1],
-            "type": None if mav_type is None else enum_name("MAV_TYPE", mav_type),
-            "autopilot": None if autopilot is None else enum_name("MAV_AUTOPILOT", autopilot),
-            "messages": int(times.size),
-            "first_s": float(times[0] - first_time),
-            "last_s": float(times[-1] - first_time),
-            "sparse": sparse,
-        })
-        if not sparse:
-            for i in np.flatnonzero(intervals > gap_threshold_s):
-                link_gaps.append({"system": source[0], "component": source[1],
-                                  "start_s": float(times[i] - first_time),
-                                  "duration_s": float(intervals[i])})
-
-    messages = []
-    log_span = last_time - first_time
-    for (system, component, name), (count, first, last) in sorted(span_by_message.items()):
-        if last - first >= MIN_RATE_SPAN_S:
-            rate = (count - 1) / (last - first)
-        else:
-            rate = count / log_span if log_span > 0 else 0.0
-        messages.append({"system": system, "component": component, "type": name,
-                         "count": count, "rate_hz": float(rate)})
-
+    systems, link_gaps = _systems_and_gaps(times_by_source, identity, first_time, gap_threshold_s)
+    messages = _message_rates(span_by_message, last_time - first_time)
     return {
         "file": str(path),
         "size_bytes": reader.size_bytes,
@@ -200,3 +169,46 @@ def format_summary(summary: dict, max_gaps_per_source: int = 5) -> str:
     if sparse:
         lines.append(f"  not searched (sparse senders): {', '.join(sparse)}")
     return "\n".join(lines)
+
+
+def _systems_and_gaps(times_by_source: dict[tuple[int, int], list[float]],
+                      identity: dict[tuple[int, int], tuple[int, int]], first_time: float,
+                      gap_threshold_s: float) -> tuple[list[dict], list[dict]]:
+    """One entry per source (system, component), and the silences longer than the threshold of
+    the sources that are not sparse."""
+    systems = []
+    link_gaps = []
+    for source in sorted(times_by_source):
+        times = np.asarray(times_by_source[source])
+        intervals = np.diff(times)
+        sparse = bool(intervals.size == 0 or np.median(intervals) > gap_threshold_s)
+        mav_type, autopilot = identity.get(source, (None, None))
+        systems.append({
+            "system": source[0],
+            "component": source[1],
+            "type": None if mav_type is None else enum_name("MAV_TYPE", mav_type),
+            "autopilot": None if autopilot is None else enum_name("MAV_AUTOPILOT", autopilot),
+            "messages": int(times.size),
+            "first_s": float(times[0] - first_time),
+            "last_s": float(times[-1] - first_time),
+            "sparse": sparse,
+        })
+        if not sparse:
+            for i in np.flatnonzero(intervals > gap_threshold_s):
+                link_gaps.append({"system": source[0], "component": source[1],
+                                  "start_s": float(times[i] - first_time),
+                                  "duration_s": float(intervals[i])})
+    return systems, link_gaps
+
+
+def _message_rates(span_by_message: dict[tuple[int, int, str], list], log_span: float) -> list[dict]:
+    """Count and rate of each message type of each source (over its own span when long enough)."""
+    messages = []
+    for (system, component, name), (count, first, last) in sorted(span_by_message.items()):
+        if last - first >= MIN_RATE_SPAN_S:
+            rate = (count - 1) / (last - first)
+        else:
+            rate = count / log_span if log_span > 0 else 0.0
+        messages.append({"system": system, "component": component, "type": name,
+                         "count": count, "rate_hz": float(rate)})
+    return messages
