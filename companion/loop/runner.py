@@ -52,7 +52,7 @@ from companion.io.link import (
 from companion.io.tlog import TlogWriter, default_tlog_path
 from companion.loop.scheduler import FixedRateScheduler, MonotonicClock
 from companion.loop.tick import DEBUG_FIELDS, TickConfig, coast_setpoint, compute_tick, hold_for
-from companion.sim.metrics import tracking_metrics
+from companion.sim.metrics import profile_errors, tracking_metrics
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
 
@@ -125,6 +125,11 @@ class FlightRecord:
     y_m: list = field(default_factory=list)
     sample_age_s: list = field(default_factory=list)
     hold: list = field(default_factory=list)
+    # For missions with an altitude / speed profile (vertical and speed errors, plots):
+    s_proj_m: list = field(default_factory=list)
+    alt_m: list = field(default_factory=list)
+    ground_speed_m_s: list = field(default_factory=list)
+    vz_cmd_ned_m_s: list = field(default_factory=list)
 
 
 class Status:
@@ -279,7 +284,13 @@ def make_guidance(mission, rate_hz: float):
     if hasattr(params, "speed_m_s"):
         changes["speed_m_s"] = float(mission.speed_m_s)
     params = dataclasses.replace(params, **changes)
-    return TwoPhaseGuidance(mission.path, params)
+    law = TwoPhaseGuidance(mission.path, params)
+    profile = getattr(mission, "profile", None)
+    if profile is not None and not profile.constant_speed:
+        from companion.guidance.profiled import ProfiledGuidance
+
+        return ProfiledGuidance(law, profile)  # every law at the local speed V(s)
+    return law
 
 
 class FlightRunner:
@@ -689,6 +700,10 @@ class FlightRunner:
         r.y_m.append(result.state.y_m if result.state is not None else math.nan)
         r.sample_age_s.append(result.sample_age_s)
         r.hold.append(result.is_hold)
+        r.s_proj_m.append(out.s_proj_m if out is not None else math.nan)
+        r.alt_m.append(-sample.z_ned_m if sample is not None else math.nan)
+        r.ground_speed_m_s.append(math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) if sample is not None else math.nan)
+        r.vz_cmd_ned_m_s.append(getattr(result.setpoint, "vz_ned_m_s", math.nan))
         if result.is_hold:
             self.hold_ticks += 1
 
@@ -724,6 +739,7 @@ class FlightRunner:
                 speed_m_s=self.mission.speed_m_s,
                 rate_hz=self.opt.rate_hz,
                 altitude_m=self.mission.altitude_m,
+                profile=self.mission.profile,
                 stale_s=self.opt.stale_s,
                 output=self._output_kind(),
                 max_bank_deg=self.opt.max_bank_deg,
@@ -784,7 +800,10 @@ class FlightRunner:
         r = self.record
         keep = [i for i, h in enumerate(r.hold) if not h and math.isfinite(r.crosstrack_m[i])]
         m = tracking_metrics([r.t_s[i] for i in keep], [r.crosstrack_m[i] for i in keep],
-                             [r.a_cmd_m_s2[i] for i in keep], [r.phase[i] for i in keep])
+                             [r.a_cmd_m_s2[i] for i in keep], [r.phase[i] for i in keep],
+                             **profile_errors(self.mission.profile, [r.s_proj_m[i] for i in keep],
+                                              [r.alt_m[i] for i in keep],
+                                              [r.ground_speed_m_s[i] for i in keep]))
         stats = self._scheduler.stats().as_dict() if self._scheduler is not None else {}
         m.update({
             "rate_hz_achieved": stats.get("rate_hz_achieved", math.nan),

@@ -157,7 +157,7 @@ def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
     ``--max-bank-deg`` is not recorded in the log; replay uses its default (35 deg).
     """
     return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                      output=output, stale_s=stale_s)
+                      output=output, stale_s=stale_s, profile=mission.profile)
 
 
 def flight_stale_s(flight: LoggedFlight) -> float:

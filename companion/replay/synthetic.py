@@ -136,7 +136,7 @@ def write_synthetic_flight(
     Path(str(tlog_path) + ".mission.yaml").write_text(mission.source_text, encoding="utf-8")
     guidance = make_guidance(mission, rate_hz)
     config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                        output=output, stale_s=stale_s)
+                        output=output, stale_s=stale_s, profile=mission.profile)
     dt = 1.0 / rate_hz
     autopilot = PacketEncoder(1, 1)
     companion = PacketEncoder(1, 191)
