@@ -25,8 +25,9 @@ arc length (or the expression). Three steps make it flyable:
    ``w = V_max^2 (g_max - g_min) / a_vert`` keeps it at most ``a_vert`` on constant-speed
    stretches. A step of slope ``g`` becomes a parabolic blend of length ``w``; the height at a
    waypoint where the slope changes by ``dg`` moves by at most ``dg w / 8``.
-3. open paths hold the end heights beyond the ends (the average near an end uses them); closed
-   paths are periodic (circular passes and a circular average).
+3. open paths are continued by odd reflection about each end (``h(-x) = 2 h(0) - h(x)``), so the
+   average keeps the first and last heights exactly; closed paths are periodic (circular passes
+   and a circular average).
 
 Pure numpy; no I/O. ``PathProfile`` answers ``altitude_m(s)``, ``slope(s)``, ``speed_m_s(s)``
 and ``climb_m_s(s)`` by linear interpolation in its tables.
@@ -221,7 +222,8 @@ def rate_limited(target_m: np.ndarray, up_m: np.ndarray, down_m: np.ndarray, clo
 
 
 def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndarray:
-    """Centred moving average over ``2 half_width + 1`` nodes (end values held, or periodic)."""
+    """Centred moving average over ``2 half_width + 1`` nodes (odd reflection at the ends of an
+    open table, which keeps the end values; periodic when closed)."""
     v = np.asarray(values, dtype=float)
     if half_width <= 0:
         return v.copy()
@@ -233,7 +235,17 @@ def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndar
         m = 2 * half_width + 1
         out = (c[m:] - c[:-m])[: core.size + 1] / m
         return out
-    ext = np.concatenate([np.full(half_width, v[0]), v, np.full(half_width, v[-1])])
+    # Odd reflection about each end (h(-x) = 2 h(0) - h(x)): the average keeps the end values
+    # exactly, and the slopes beyond the ends are those inside (no new slopes, no new jumps).
+    n = v.size
+    idx = np.arange(1, half_width + 1)
+    before = 2.0 * v[0] - v[np.minimum(idx, n - 1)][::-1]
+    after = 2.0 * v[-1] - v[np.maximum(n - 1 - idx, 0)]
+    if half_width >= n:  # a window longer than the path: continue linearly past the reflection
+        g0, g1 = v[1] - v[0], v[-1] - v[-2]
+        before = v[0] - g0 * idx[::-1]
+        after = v[-1] + g1 * idx
+    ext = np.concatenate([before, v, after])
     c = np.concatenate(([0.0], np.cumsum(ext)))
     m = 2 * half_width + 1
     return (c[m:] - c[:-m]) / m
@@ -253,8 +265,10 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
         return target.copy()
     ds = float(s_grid[1] - s_grid[0])
     v = np.asarray(speed_m_s, dtype=float)
-    up = limits.climb_max_m_s / v * ds
-    down = limits.sink_max_m_s / v * ds
+    # A relative margin of 1e-6 absorbs the rounding of the tables and their interpolation.
+    climb, sink = limits.climb_max_m_s * (1 - 1e-6), limits.sink_max_m_s * (1 - 1e-6)
+    up = climb / v * ds
+    down = sink / v * ds
     v_max = float(np.max(v))
     limited = rate_limited(target, up, down, closed)
     half = _half_window(limited, ds, v_max, limits)
@@ -265,8 +279,7 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
         for _ in range(4):
             size = 2 * half + 1
             v_near = maximum_filter1d(v, size=min(size, 4 * v.size + 1), mode="wrap" if closed else "nearest")
-            limited = rate_limited(target, limits.climb_max_m_s / v_near * ds,
-                                   limits.sink_max_m_s / v_near * ds, closed)
+            limited = rate_limited(target, climb / v_near * ds, sink / v_near * ds, closed)
             new_half = _half_window(limited, ds, v_max, limits)
             if new_half <= half:
                 break
