@@ -54,7 +54,7 @@ from companion.replay.flightlog import (
     read_flight,
 )
 from companion.replay.progress import ByteProgress
-from companion.sim.metrics import tracking_metrics
+from companion.sim.metrics import PROFILE_METRIC_KEYS, profile_errors, tracking_metrics
 
 MISSION_SUFFIX = ".mission.yaml"
 
@@ -124,6 +124,7 @@ class ReplayResult:
             "a_rms_m_s2": self.tracking["a_rms_m_s2"],
             "a_max_m_s2": self.tracking["a_max_m_s2"],
             "duration_s": self.tracking["duration_s"],
+            **{k: self.tracking[k] for k in PROFILE_METRIC_KEYS if k in self.tracking},
             "phases": self.tracking["phases"],
             "warnings": [w.as_dict() for w in self.flight.warnings],
             "notes": list(self.flight.notes),
@@ -237,7 +238,8 @@ _SERIES = ("t_s", "tick", "x_enu_m", "y_enu_m", "crosstrack_m", "a_logged_m_s2",
            "yaw_rate_logged_rad_s", "yaw_rate_replayed_rad_s", "vx_logged_m_s", "vy_logged_m_s",
            "vz_logged_m_s", "vx_replayed_m_s", "vy_replayed_m_s", "vz_replayed_m_s",
            "k1_logged", "k2_logged", "k1_replayed", "k2_replayed", "yaw_rate_diff_rad_s", "vel_diff_m_s",
-           "roll_logged_rad", "roll_replayed_rad", "attitude_diff_rad")
+           "roll_logged_rad", "roll_replayed_rad", "attitude_diff_rad",
+           "alt_m", "s_proj_m", "ground_speed_m_s")  # the last three: profile errors
 
 
 def _absdiff(a: float, b: float) -> float:
@@ -323,6 +325,8 @@ def replay_flight(
     i_k1, i_k2 = DEBUG_INDEX["k1"], DEBUG_INDEX["k2"]
     n_coasts = len(coasts)
     isfinite = math.isfinite
+    c_alt, c_s, c_gs = cols["alt_m"], cols["s_proj_m"], cols["ground_speed_m_s"]
+    profile = mission.profile
 
     with ByteProgress(n, "replaying", enabled=progress, unit=" ticks") as bar:
         for i, tk in enumerate(flight.ticks):
@@ -354,7 +358,10 @@ def replay_flight(
             if sample is not None:
                 c_x[i] = sample.y_ned_m
                 c_y[i] = sample.x_ned_m
+                if profile is not None:
+                    c_alt[i], c_gs[i] = -sample.z_ned_m, math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s)
             if out is not None:
+                c_s[i] = out.s_proj_m
                 c_a_rep[i], c_k1_rep[i], c_k2_rep[i] = out.a_cmd_m_s2, out.k1, out.k2
             else:
                 c_a_rep[i] = 0.0
@@ -426,7 +433,7 @@ def replay_flight(
              "compared": np.ones(len(coast_diffs), dtype=bool)}, ["coast"] * len(coast_diffs))["coast"]
     switches = {"logged": _switches(cols["t_s"], phase_logged) if companion_log else [],
                 "replayed": _switches(cols["t_s"], phase_replayed)}
-    tracking = _tracking(cols, phase_logged)
+    tracking = _tracking(cols, phase_logged, mission.profile)
     cols["phase_logged"] = np.asarray(phase_logged, dtype=object)
     cols["phase_replayed"] = np.asarray(phase_replayed, dtype=object)
     return ReplayResult(flight, mission.name, tolerance, cols, first_divergence, per_phase, switches,
@@ -570,13 +577,16 @@ def _switches(t_s: np.ndarray, phases: list[str]) -> list[dict]:
     return out
 
 
-def _tracking(cols: dict, phases: list[str]) -> dict:
-    """Tracking figures of the flight itself, over the ticks with a cross-track value."""
+def _tracking(cols: dict, phases: list[str], profile=None) -> dict:
+    """Tracking figures of the flight itself, over the ticks with a cross-track value (and, for a
+    mission with a profile, the vertical and speed errors)."""
     d = cols["crosstrack_m"]
     a = cols["a_logged_m_s2"]
     keep = np.isfinite(d) & np.isfinite(a)
     names = [p for p, k in zip(phases, keep) if k]
-    m = tracking_metrics(cols["t_s"][keep], d[keep], a[keep], names)
+    m = tracking_metrics(cols["t_s"][keep], d[keep], a[keep], names,
+                         **profile_errors(profile, cols["s_proj_m"][keep], cols["alt_m"][keep],
+                                          cols["ground_speed_m_s"][keep]))
     return {k: (_json_float(v) if isinstance(v, float) else v) for k, v in m.items()}
 
 
