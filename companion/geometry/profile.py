@@ -187,9 +187,12 @@ def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: floa
     for _ in range(laps):
         t = target2.tolist()
         o = [0.0] * len(t)
+        # Node i moves towards the target of node i - 1: a change given at s_k starts at s_k.
+        prev = t[-1] if closed else t[0]
         for i, want in enumerate(t):
-            v2 = min(max(want, v2 - step), v2 + step)
+            v2 = min(max(prev, v2 - step), v2 + step)
             o[i] = v2
+            prev = want
         out = np.asarray(o)
         v2 = out[-1]
     return np.sqrt(out)
@@ -254,7 +257,7 @@ def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndar
 def _half_window(limited: np.ndarray, ds: float, v_max: float, limits: ProfileLimits) -> int:
     g = np.diff(limited) / ds
     w = v_max * v_max * float(np.max(g) - np.min(g)) / limits.vert_accel_max_m_s2
-    return int(math.ceil(0.5 * w / ds))
+    return int(math.ceil(0.5 * w / ds - 1e-9))
 
 
 def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarray,

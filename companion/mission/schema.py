@@ -442,7 +442,8 @@ def _validate(value, spec, path, problems):
             return None
         return int(value) if spec.integer else float(value)
     if isinstance(spec, OneOf):
-        kind = list if isinstance(value, list) else str if isinstance(value, str) else float
+        kind = (list if isinstance(value, list) else str if isinstance(value, str)
+                else float if isinstance(value, (int, float)) and not isinstance(value, bool) else None)
         for variant in spec.variants:
             if _kind_of(variant) is kind:
                 return _validate(value, variant, path, problems)
