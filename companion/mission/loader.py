@@ -16,6 +16,7 @@ as one :class:`companion.errors.MissionError`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path as FilePath
 
@@ -214,13 +215,15 @@ class _Builder:
         if path is not None and guidance is not None:
             self.check_path_against_guidance(path, guidance)
             profile = self.build_profile(path)
+            if profile is not None and guidance.speed_m_s != profile.speed_m_s(0.0):
+                guidance = dataclasses.replace(guidance, speed_m_s=profile.speed_m_s(0.0))
         if self.problems:
             return None
         return Mission(
             name=doc["name"],
             path=path,
-            speed_m_s=self.first_value(doc["speed_m_s"]),
-            altitude_m=profile.start_altitude_m if profile is not None else self.first_value(doc["altitude_m"]),
+            speed_m_s=profile.speed_m_s(0.0) if profile is not None else doc["speed_m_s"],
+            altitude_m=profile.start_altitude_m if profile is not None else doc["altitude_m"],
             guidance=guidance,
             start=start,
             on_finish=doc["on_finish"],
@@ -231,13 +234,6 @@ class _Builder:
             warnings=tuple(self.warnings),
             profile=profile,
         )
-
-    @staticmethod
-    def first_value(value):
-        """The number of a scalar key, the first entry of a list (None for an expression)."""
-        if isinstance(value, list):
-            return value[0] if value else None
-        return value if isinstance(value, float) else None
 
     def build_origin(self) -> GeodeticOrigin | None:
         origin = self.doc.get("origin")
