@@ -89,6 +89,7 @@ class ReplayResult:
     timing_s: dict = field(default_factory=dict)
     mission_path: object = None  # the mission's reference path (for plots)
     rate_hz: float = math.nan  # the loop rate replayed at
+    mission_profile: object = None  # the mission's altitude / speed profile, or None (for plots)
 
     @property
     def steps_compared(self) -> int:
@@ -438,7 +439,7 @@ def replay_flight(
     cols["phase_replayed"] = np.asarray(phase_replayed, dtype=object)
     return ReplayResult(flight, mission.name, tolerance, cols, first_divergence, per_phase, switches,
                         tracking, {"replay_s": time.perf_counter() - started}, mission.path,
-                        rate_hz)
+                        rate_hz, mission.profile)
 
 
 def _compare_setpoints(logged, sp, tolerance: Tolerance) -> tuple[dict, list[str]]:
