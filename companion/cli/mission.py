@@ -186,7 +186,7 @@ def run_show(args) -> int:
     radius = figures["radius_min_m"]
     print(f"  tightest radius: {radius if radius is not None else math.inf:.2f} m at s = "
           f"{figures['radius_min_at_s_m']:.1f} m (V^2 k = {figures['a_path_max_m_s2']:.2f} m/s^2 at "
-          f"V = {mission.speed_m_s:g} m/s)")
+          + ("the local speed V(s), largest along the path)" if mission.profile is not None else f"V = {mission.speed_m_s:g} m/s)"))
     print(f"  guidance: {figures['method']}, L1 = {figures['l1_m']:g} m, "
           f"{mission.guidance.rate_hz:g} Hz; altitude {mission.altitude_m:g} m")
     if "profile" in figures:
