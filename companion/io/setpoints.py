@@ -17,7 +17,9 @@ turn left). Two output adapters turn it into what an autopilot flies:
 * ``yaw_rate = a_cmd / V`` (sign flipped for NED: clockwise positive) so that the nose follows
   the turn;
 * altitude held by a **vertical velocity** ``vz = -k (alt_target - alt)`` clamped to
-  ``max_climb_m_s``, not by a z position. ArduCopter reads the three position bits of
+  ``max_climb_m_s``, not by a z position. A mission with an altitude profile adds the profile's
+  climb rate ``V(s) dh/ds`` as feed-forward and clamps to its climb and sink limits
+  (:func:`profile_targets`). ArduCopter reads the three position bits of
   ``type_mask`` as one group: a z position with xy ignored makes it treat x, y as used too (it
   would fly to x = y = 0). Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
   and yaw ignored; vx, vy, vz, yaw_rate used), which PX4 and ArduPilot both accept.

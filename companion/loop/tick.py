@@ -14,6 +14,10 @@ Rules applied here (and therefore identically in flight and in replay):
 * the course handed to the guidance is the direction of the measured ground velocity; below
   ``min_course_speed_m_s`` it falls back to the attitude yaw, then to the previous course;
 * the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V);
+  a mission with a profile (``TickConfig.profile``) commands ``V(s)`` and the altitude hold on
+  ``h(s)`` with the feed-forward climb ``V(s) dh/ds`` at the tick's projection ``s``
+  (:func:`companion.io.setpoints.profile_targets`; the guidance gets ``V(s)`` through
+  :class:`companion.guidance.profiled.ProfiledGuidance`);
 * the velocity setpoint's direction is the **commanded course**, integrated tick by tick
   (``course_cmd += a_cmd / V * dt``), not re-derived from the measured course every tick. A vehicle
   whose velocity loop lags (time constant tau) trails the command by about ``omega * tau`` in a

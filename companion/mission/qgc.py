@@ -9,12 +9,15 @@ what a mission file can represent and says what it drops:
 - A final ``NAV_RETURN_TO_LAUNCH`` / ``NAV_LAND`` / ``NAV_LOITER_UNLIM`` becomes ``on_finish:
   rtl | land | loiter`` (a land or loiter position becomes the last waypoint, flown at the mission
   altitude; a landing item's own altitude is ignored).
-- ``DO_CHANGE_SPEED`` sets ``speed_m_s`` (all of them must agree).
+- ``DO_CHANGE_SPEED`` (a ground or air speed) applies from the waypoint before it on: several
+  speeds make ``speed_m_s`` a per-waypoint profile. Climb / descent speeds are skipped with a note.
 - Other non-navigation items (camera, servo, ROI, conditions...) are skipped with a note.
-- Refused, because a single constant-altitude path cannot represent them: ``DO_JUMP`` loops,
-  timed or counted loiters, navigation commands in the middle that end a flight, survey /
-  corridor complex items, items in local or terrain-relative frames, waypoints at different
-  altitudes (pass ``altitude_m`` to flatten them), positions at 0, 0.
+- Each waypoint keeps its altitude (frame 3 above home; frame 0 AMSL minus home's altitude):
+  waypoints at different altitudes make ``altitude_m`` a per-waypoint profile (``altitude_m``
+  given to :func:`convert` flattens them to one height).
+- Refused, because a mission path cannot represent them: ``DO_JUMP`` loops, timed or counted
+  loiters, navigation commands in the middle that end a flight, survey / corridor complex items,
+  items in local or terrain-relative frames (no terrain model), positions at 0, 0.
 
 Positions are converted from WGS-84 to local ENU metres about the plan's home
 (``plannedHomePosition`` in a ``.plan``; item 0 of a WPL file, as QGroundControl and Mission
