@@ -66,6 +66,7 @@ MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_CMD_REQUEST_MESSAGE = 512
 MAV_CMD_GUIDED_CHANGE_SPEED = 43000
+MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 
@@ -729,6 +730,11 @@ class MavLink:
         if self.info is not None and self.info.autopilot == "ardupilot":
             return self.command_long(MAV_CMD_GUIDED_CHANGE_SPEED, (1, speed_m_s, 0), **kw)
         return self.command_long(MAV_CMD_DO_CHANGE_SPEED, (1, speed_m_s, -1), **kw)
+
+    def change_altitude(self, altitude_m: float, rate_m_s: float = 0.0, **kw) -> int | None:
+        """ArduPlane's GUIDED_CHANGE_ALTITUDE: the height (m above home) to hold in GUIDED, reached
+        at ``rate_m_s`` (0: the autopilot's own)."""
+        return self.command_long(MAV_CMD_GUIDED_CHANGE_ALTITUDE, (0, 0, rate_m_s, 0, 0, 0, altitude_m), **kw)
 
     # ---------------------------------------------------------------- setpoints and records
 

@@ -673,6 +673,7 @@ class FlightRunner:
         row[DEBUG_FIELDS.index("setpoint_sent")] = 1.0 if sent else 0.0
         self.link.record_debug("guidance", result.tick, time_usec, row)
         self._record(result, sample)
+        self._plane_profile_targets(result)
         if result.is_hold != self._in_hold:
             self._in_hold = result.is_hold
             if result.is_hold:
@@ -687,6 +688,28 @@ class FlightRunner:
             self._check_link()
             self._pump(0.05)
         self._event(f"back in {target_mode.upper()}: resuming")
+
+    def _plane_profile_targets(self, result) -> None:
+        """A fixed wing flying a mission with a profile gets its height and speed through the
+        autopilot's own channels, sent (without waiting for an ack) when the target moves by
+        0.5 m or 0.2 m/s, and the height at least once a second: the speed command (as at the
+        start of the flight) and, on ArduPilot, GUIDED_CHANGE_ALTITUDE. PX4 takes the climb from
+        the attitude setpoint's pitch (``companion.loop.tick``)."""
+        profile = getattr(self.mission, "profile", None)
+        if profile is None or result.output is None or type(result.setpoint).__name__ != "AttitudeSetpoint":
+            return
+        s_m = result.output.s_proj_m
+        v = profile.speed_m_s(s_m)
+        sent_v, sent_h, sent_t = getattr(self, "_plane_sent", (self.mission.speed_m_s, math.nan, -math.inf))
+        if abs(v - sent_v) >= 0.2:
+            self.link.change_speed(v, wait_ack_s=0.0, retries=1)
+            sent_v = v
+        if self.link.info is not None and self.link.info.autopilot == "ardupilot":
+            h = profile.altitude_m(s_m)
+            if not abs(h - sent_h) < 0.5 or result.t_s - sent_t >= 1.0:
+                self.link.change_altitude(h, profile.limits.climb_max_m_s, wait_ack_s=0.0, retries=1)
+                sent_h, sent_t = h, result.t_s
+        self._plane_sent = (sent_v, sent_h, sent_t)
 
     def _record(self, result, sample) -> None:
         r = self.record
