@@ -240,3 +240,28 @@ def test_gallery_import_is_current(tmp_path):
     m = load_mission(missions / "qgc_inspection.yaml")
     assert_on_path(m, points, m.altitude_m, tuple(plan["mission"]["plannedHomePosition"]))
     assert np.isfinite(m.path.length_m)
+
+
+def test_wpl_waypoints_keep_their_own_heights_in_frames_0_and_3(tmp_path, capsys):
+    import yaml
+
+    # Item 3 at 40 m above home (frame 3); item 4 at 599.09 m AMSL (frame 0): 599.09 - 584.09 = 15.
+    text = WPL.replace("-35.36120000\t149.16620000\t25.000000", "-35.36120000\t149.16620000\t40.000000")
+    text = text.replace("609.090000", "599.090000")
+    code, src, out = run_import(tmp_path, "route.waypoints", text)
+    err = capsys.readouterr().err
+    assert code == 0, err
+    doc = yaml.safe_load(out.read_text())
+    # The landing point (item 6) is flown at the height of the waypoint before it.
+    assert doc["altitude_m"] == [25.0, 40.0, 15.0, 15.0]
+    mission = load_mission(out)
+    home = (-35.363262, 149.165237, 584.09)
+    for (lat, lon), h in zip(WPL_POINTS, doc["altitude_m"]):
+        assert_on_path(mission, [(lat, lon)], h, home)
+
+
+def test_terrain_relative_waypoints_are_refused_in_one_line(tmp_path, capsys):
+    text = WPL.replace("2\t0\t3\t16", "2\t0\t10\t16")
+    src, lines = refused(tmp_path, capsys, "terrain.waypoints", text)
+    assert lines == [f"companion: error: {src}: line 4 (item 2): terrain-relative altitude cannot be represented; expected "
+                     "frame 3 (relative to home) or 0 (AMSL)"]
