@@ -128,3 +128,26 @@ def test_the_profile_flight_replays_within_tolerance(profile_flight):
     result = replay_log(tlog, progress=False)
     assert result.within_tolerance, result.first_divergence
     assert result.steps_compared > 1000
+
+
+def test_replay_compares_vz_a_different_altitude_profile_diverges(profile_flight):
+    """The same flight replayed against the mission with its heights lowered by 3 m: the
+    horizontal setpoints are unchanged, only vz differs (the correction 1/s * 3 m, clamped at the
+    1.5 m/s sink limit, against the logged climb), and the replay must report it."""
+    import yaml
+
+    from companion.mission import parse_mission
+    from companion.replay.replay import replay_log
+
+    mission, _, tlog = profile_flight
+    doc = yaml.safe_load(mission.source_text)
+    doc["altitude_m"] = [h - 3.0 for h in doc["altitude_m"]]
+    lowered = parse_mission(yaml.safe_dump(doc), "lowered.yaml")
+    result = replay_log(tlog, lowered, progress=False)
+    assert not result.within_tolerance
+    fd = result.first_divergence
+    assert fd["tick"] <= 2 and any("vel" in r for r in fd["reasons"]), fd
+    logged, replayed = fd["logged"], fd["replayed"]
+    assert abs(logged["vx_m_s"] - replayed["vx_m_s"]) < 1e-6
+    assert replayed["vz_m_s"] == pytest.approx(1.5, abs=1e-6)  # down at the sink limit
+    assert replayed["vz_m_s"] - logged["vz_m_s"] > 1.0
