@@ -248,12 +248,15 @@ def test_wpl_waypoints_keep_their_own_heights_in_frames_0_and_3(tmp_path, capsys
     # Item 3 at 40 m above home (frame 3); item 4 at 599.09 m AMSL (frame 0): 599.09 - 584.09 = 15.
     text = WPL.replace("-35.36120000\t149.16620000\t25.000000", "-35.36120000\t149.16620000\t40.000000")
     text = text.replace("609.090000", "599.090000")
+    # A DO_CHANGE_SPEED (ground speed 9 m/s) after item 3: the speed from that waypoint on.
+    text = text.replace("5\t0\t3\t183", "5\t0\t3\t178\t1\t9\t-1\t0\t0\t0\t0\t1\n55\t0\t3\t183")
     code, src, out = run_import(tmp_path, "route.waypoints", text)
     err = capsys.readouterr().err
     assert code == 0, err
     doc = yaml.safe_load(out.read_text())
     # The landing point (item 6) is flown at the height of the waypoint before it.
     assert doc["altitude_m"] == [25.0, 40.0, 15.0, 15.0]
+    assert doc["speed_m_s"] == [5, 5, 9, 9]  # no speed before it: 5 m/s
     mission = load_mission(out)
     home = (-35.363262, 149.165237, 584.09)
     for (lat, lon), h in zip(WPL_POINTS, doc["altitude_m"]):
