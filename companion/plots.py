@@ -83,6 +83,7 @@ def flight_figure(
     a_compare: tuple[str, Sequence[float]] | None = None,
     mark_t_s: tuple[str, float] | None = None,
     track_label: str = "flown track",
+    altitude: tuple | None = None,
 ):
     """The flight plot: path vs track (ENU), cross-track error and a_cmd over time, phases shaded.
 
@@ -93,6 +94,9 @@ def flight_figure(
     title : figure title.
     a_compare : optional ``(label, series)`` drawn dashed over a_cmd (replay: the re-computed command).
     mark_t_s : optional ``(label, t_s)`` marked by a vertical line on both time panels.
+    altitude : optional ``(profile, s_m, alt_m)`` for a mission with an altitude / speed profile:
+        a panel below the path with the profile's height (and speed) along the arc length and the
+        flown heights at each tick's projection ``s_m``. Without it the figure is the 2-D one.
 
     Returns the matplotlib figure; write it with :func:`save_figure`.
     """
@@ -100,8 +104,8 @@ def flight_figure(
     t = np.asarray(t_s, dtype=float)
     x = np.asarray(x_m, dtype=float)
     y = np.asarray(y_m, dtype=float)
-    fig = plt.figure(figsize=(12, 7))
-    ax_xy = fig.add_subplot(1, 2, 1)
+    fig = plt.figure(figsize=(12, 7) if altitude is None else (12, 9.5))
+    ax_xy = fig.add_subplot(1, 2, 1) if altitude is None else fig.add_subplot(3, 2, (1, 3))
     if path is not None:
         _, px, py = path.sample(1000)
         ax_xy.plot(px, py, "k--", lw=1, label="path")
@@ -114,8 +118,14 @@ def flight_figure(
     ax_xy.legend(loc="best", fontsize=8)
     ax_xy.set_title(title, fontsize=10)
 
-    ax_d = fig.add_subplot(2, 2, 2)
-    ax_a = fig.add_subplot(2, 2, 4, sharex=ax_d)
+    if altitude is None:
+        ax_d = fig.add_subplot(2, 2, 2)
+        ax_a = fig.add_subplot(2, 2, 4, sharex=ax_d)
+    else:
+        ax_d = fig.add_subplot(3, 2, (2, 4))
+        ax_a = fig.add_subplot(3, 2, 6, sharex=ax_d)
+        profile, s_m, alt_m = altitude
+        profile_panel(fig.add_subplot(3, 2, 5), profile, s_m, alt_m)
     if t.size:
         seen: set[str] = set()
         for t0, t1, name in phase_spans(t, phases):
@@ -143,3 +153,24 @@ def flight_figure(
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+def profile_panel(ax, profile, s_m: Sequence[float] | None = None, alt_m: Sequence[float] | None = None):
+    """Altitude along the path (and the speed on a second axis): the profile's tables, the flown
+    heights at their projections when given. ``profile`` is a
+    :class:`companion.geometry.profile.PathProfile`."""
+    ax.plot(profile.s_m, profile.alt_m, "k-", lw=1.2, label="altitude profile h(s)")
+    if s_m is not None and alt_m is not None:
+        ax.plot(np.asarray(s_m, dtype=float), np.asarray(alt_m, dtype=float), "b.", ms=1.5,
+                label="flown altitude")
+    ax.set_xlabel("arc length s (m)")
+    ax.set_ylabel("altitude (m)")
+    ax.grid(True, alpha=0.3)
+    ax_v = ax.twinx()
+    ax_v.plot(profile.s_m, profile.speed_m_s_table, "-", color="tab:orange", lw=1,
+              label="speed V(s), m/s (right axis)")
+    ax_v.tick_params(axis="y", colors="tab:orange")
+    lines = ax.get_legend_handles_labels()
+    more = ax_v.get_legend_handles_labels()
+    ax.legend(lines[0] + more[0], lines[1] + more[1], loc="best", fontsize=8)
+    return ax

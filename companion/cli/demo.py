@@ -71,8 +71,11 @@ def write_plot(path: Path, mission, record, title: str) -> Path:
     """Path vs track, cross-track error and a_cmd over time, phases shaded."""
     from companion.plots import flight_figure, save_figure
 
+    altitude = None
+    if getattr(mission, "profile", None) is not None:
+        altitude = (mission.profile, record.s_proj_m, record.alt_m)
     fig = flight_figure(mission.path, record.t_s, record.x_m, record.y_m, record.crosstrack_m,
-                        record.a_cmd_m_s2, list(record.phase), title)
+                        record.a_cmd_m_s2, list(record.phase), title, altitude=altitude)
     return save_figure(fig, path)
 
 

@@ -144,6 +144,24 @@ def _figures(mission) -> dict:
     if mission.origin is not None:
         out["origin"] = {"lat_deg": mission.origin.lat_deg, "lon_deg": mission.origin.lon_deg,
                          "alt_m": mission.origin.alt_m}
+    p = mission.profile
+    if p is not None:
+        climb = p.climb_table_m_s()
+        lim = p.limits
+        out["profile"] = {
+            "altitude_min_m": round(float(p.alt_m.min()), 4),
+            "altitude_max_m": round(float(p.alt_m.max()), 4),
+            "altitude_end_m": round(p.end_altitude_m, 4),
+            "speed_min_m_s": round(float(p.speed_m_s_table.min()), 4),
+            "speed_max_m_s": round(float(p.speed_m_s_table.max()), 4),
+            "climb_max_m_s": round(float(climb.max()), 4),
+            "sink_max_m_s": round(float(-climb.min()), 4),
+            "limits": {"climb_max_m_s": lim.climb_max_m_s, "sink_max_m_s": lim.sink_max_m_s,
+                       "vertical_accel_max_m_s2": lim.vert_accel_max_m_s2,
+                       "along_track_accel_max_m_s2": lim.along_accel_max_m_s2},
+        }
+        out["a_path_max_m_s2"] = round(float(np.max(np.interp(path.s_table_m, p.s_m, p.speed_m_s_table) ** 2
+                                                    * np.abs(k))), 4)
     return out
 
 
@@ -168,9 +186,15 @@ def run_show(args) -> int:
     radius = figures["radius_min_m"]
     print(f"  tightest radius: {radius if radius is not None else math.inf:.2f} m at s = "
           f"{figures['radius_min_at_s_m']:.1f} m (V^2 k = {figures['a_path_max_m_s2']:.2f} m/s^2 at "
-          f"V = {mission.speed_m_s:g} m/s)")
+          + ("the local speed V(s), largest along the path)" if mission.profile is not None else f"V = {mission.speed_m_s:g} m/s)"))
     print(f"  guidance: {figures['method']}, L1 = {figures['l1_m']:g} m, "
           f"{mission.guidance.rate_hz:g} Hz; altitude {mission.altitude_m:g} m")
+    if "profile" in figures:
+        pf = figures["profile"]
+        print(f"  profile: altitude {pf['altitude_min_m']:g}..{pf['altitude_max_m']:g} m (end "
+              f"{pf['altitude_end_m']:g} m), speed {pf['speed_min_m_s']:g}..{pf['speed_max_m_s']:g} m/s, "
+              f"climb up to {pf['climb_max_m_s']:.2f} m/s, sink up to {pf['sink_max_m_s']:.2f} m/s "
+              f"(limits {pf['limits']['climb_max_m_s']:g} / {pf['limits']['sink_max_m_s']:g} m/s)")
     for side, circle in zip(("left", "right"), figures["initiation_circles"]):
         cx, cy = circle["centre_xy_m"]
         print(f"  initiation circle ({side}): centre ({cx:.2f}, {cy:.2f}), R = {circle['radius_m']:g} m")
@@ -189,7 +213,14 @@ def _plot(mission, out_png: str) -> None:
     path = mission.path
     s, x, y = path.sample(2000)
     k = path.curvature_array(s)
-    fig, (ax_xy, ax_k) = plt.subplots(2, 1, figsize=(8, 9), gridspec_kw={"height_ratios": [3, 1]})
+    if mission.profile is None:
+        fig, (ax_xy, ax_k) = plt.subplots(2, 1, figsize=(8, 9), gridspec_kw={"height_ratios": [3, 1]})
+    else:  # a third panel: altitude and speed along the path
+        fig, (ax_xy, ax_k, ax_h) = plt.subplots(3, 1, figsize=(8, 11),
+                                                gridspec_kw={"height_ratios": [3, 1, 1]})
+        from companion.plots import profile_panel
+
+        profile_panel(ax_h, mission.profile)
     ax_xy.plot(x, y, "-", color="tab:blue", lw=1.5, label="path")
     x0, y0 = path.start_xy_m
     h = path.start_heading_rad

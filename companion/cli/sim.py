@@ -50,6 +50,7 @@ def run(args) -> int:
 
     from companion.guidance.two_phase import TwoPhaseGuidance
     from companion.mission import load_mission
+    from companion.guidance.profiled import ProfiledGuidance
     from companion.sim.simulator import simulate
 
     mission = load_mission(args.mission)
@@ -71,7 +72,9 @@ def run(args) -> int:
         raise MissionError(f"--t-max-s: expected a number > 0, got {args.t_max_s}")
     start = VehicleState(x0, y0, h0, mission.speed_m_s)
     law = TwoPhaseGuidance(path, params)
-    result = simulate(path, law, start, params, t_max_s=args.t_max_s)
+    profile = mission.profile if mission.profile is not None and not mission.profile.constant_speed else None
+    result = simulate(path, ProfiledGuidance(law, profile) if profile else law, start, params,
+                      t_max_s=args.t_max_s, profile=profile)
     metrics = result.metrics
     summary = {
         "mission": mission.name, "method": params.method,

@@ -80,6 +80,7 @@ MAV_CMD_COMPONENT_ARM_DISARM = mavlink2.MAV_CMD_COMPONENT_ARM_DISARM
 MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
 MAV_CMD_REQUEST_MESSAGE = mavlink2.MAV_CMD_REQUEST_MESSAGE
 MAV_CMD_GUIDED_CHANGE_SPEED = mavlink2.MAV_CMD_GUIDED_CHANGE_SPEED
+MAV_CMD_GUIDED_CHANGE_ALTITUDE = mavlink2.MAV_CMD_GUIDED_CHANGE_ALTITUDE
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 MAV_MODE_FLAG_SAFETY_ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 MAV_RESULT_IN_PROGRESS = mavlink2.MAV_RESULT_IN_PROGRESS
@@ -738,6 +739,11 @@ class MavLink:
         if self.info is not None and self.info.autopilot == "ardupilot":
             return self.command_long(MAV_CMD_GUIDED_CHANGE_SPEED, (1, speed_m_s, 0), **kw)
         return self.command_long(MAV_CMD_DO_CHANGE_SPEED, (1, speed_m_s, -1), **kw)
+
+    def change_altitude(self, altitude_m: float, rate_m_s: float = 0.0, **kw) -> int | None:
+        """ArduPlane's GUIDED_CHANGE_ALTITUDE: the height (m above home) to hold in GUIDED, reached
+        at ``rate_m_s`` (0: the autopilot's own)."""
+        return self.command_long(MAV_CMD_GUIDED_CHANGE_ALTITUDE, (0, 0, rate_m_s, 0, 0, 0, altitude_m), **kw)
 
     # ---------------------------------------------------------------- setpoints and records
 

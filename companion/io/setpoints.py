@@ -17,7 +17,9 @@ turn left). Two output adapters turn it into what an autopilot flies:
 * ``yaw_rate = a_cmd / V`` (sign flipped for NED: clockwise positive) so that the nose follows
   the turn;
 * altitude held by a **vertical velocity** ``vz = -k (alt_target - alt)`` clamped to
-  ``max_climb_m_s``, not by a z position. ArduCopter reads the three position bits of
+  ``max_climb_m_s``, not by a z position. A mission with an altitude profile adds the profile's
+  climb rate ``V(s) dh/ds`` as feed-forward and clamps to its climb and sink limits
+  (:func:`profile_targets`). ArduCopter reads the three position bits of
   ``type_mask`` as one group: a z position with xy ignored makes it treat x, y as used too (it
   would fly to x = y = 0). Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
   and yaw ignored; vx, vy, vz, yaw_rate used), which PX4 and ArduPilot both accept.
@@ -69,27 +71,62 @@ TYPE_MASK_ATTITUDE_THRUST = ATT_IGNORE_ROLL_RATE | ATT_IGNORE_PITCH_RATE | ATT_I
 
 @dataclass(frozen=True)
 class AltitudeHold:
-    """Vertical-velocity altitude hold: ``vz_up = clamp(gain * (alt_target - alt), +-max_climb)``."""
+    """Vertical-velocity altitude hold:
+    ``vz_up = clamp(climb_ff + gain * (alt_target - alt), -max_sink, +max_climb)``.
+
+    ``climb_ff_m_s`` is the feed-forward climb rate of an altitude profile (``V dh/ds`` where the
+    vehicle is on the path; 0 for a constant altitude). ``max_sink_m_s`` defaults to
+    ``max_climb_m_s`` (a symmetric clamp, the constant-altitude hold).
+    """
 
     altitude_m: float  # target altitude above the local origin (up positive)
     gain_1_s: float = 1.0
     max_climb_m_s: float = 2.0
+    max_sink_m_s: float | None = None
+    climb_ff_m_s: float = 0.0
 
     def __post_init__(self) -> None:
-        if not math.isfinite(self.altitude_m):
-            raise ValueError(f"altitude_m: expected a finite number, got {self.altitude_m!r}")
-        for name in ("gain_1_s", "max_climb_m_s"):
+        for name in ("altitude_m", "climb_ff_m_s"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name}: expected a finite number, got {getattr(self, name)!r}")
+        for name in ("gain_1_s", "max_climb_m_s", "max_sink_m_s"):
             value = getattr(self, name)
+            if name == "max_sink_m_s" and value is None:
+                continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
 
-    def vz_ned_m_s(self, alt_m: float) -> float:
-        """Downward velocity that drives the altitude to the target (0 when alt is not finite)."""
+    def climb_m_s(self, alt_m: float) -> float:
+        """Upward velocity that drives the altitude to the target (0 when alt is not finite)."""
         if not math.isfinite(alt_m):
             return 0.0
-        climb = self.gain_1_s * (self.altitude_m - alt_m)
-        climb = max(-self.max_climb_m_s, min(self.max_climb_m_s, climb))
-        return -climb
+        sink = self.max_climb_m_s if self.max_sink_m_s is None else self.max_sink_m_s
+        climb = self.climb_ff_m_s + self.gain_1_s * (self.altitude_m - alt_m)
+        return max(-sink, min(self.max_climb_m_s, climb))
+
+    def vz_ned_m_s(self, alt_m: float) -> float:
+        """Downward velocity that drives the altitude to the target (0 when alt is not finite)."""
+        return -self.climb_m_s(alt_m)
+
+
+def profile_targets(profile, s_m: float, feed_forward: bool = True) -> tuple[float, AltitudeHold]:
+    """Speed and altitude hold at arc length ``s_m`` of a
+    :class:`companion.geometry.profile.PathProfile`: the local speed ``V(s)``, and the hold on
+    ``h(s)`` with the feed-forward climb ``V(s) dh/ds`` (without it for ``feed_forward=False``,
+    a hold at one point), clamped to the profile's climb and sink limits.
+
+    >>> from companion.geometry.profile import ProfileLimits, build_profile
+    >>> p = build_profile(100.0, False, ProfileLimits(), alt_target=lambda s: 10 + 0.1 * s,
+    ...                   speed_target=5.0)
+    >>> v, hold = profile_targets(p, 50.0)
+    >>> v, round(hold.altitude_m, 6), round(hold.climb_ff_m_s, 6)   # V dh/ds = 5 * 0.1
+    (5.0, 15.0, 0.5)
+    """
+    limits = profile.limits
+    v = profile.speed_m_s(s_m)
+    ff = v * profile.slope(s_m) if feed_forward else 0.0
+    return v, AltitudeHold(profile.altitude_m(s_m), limits.alt_gain_1_s, limits.climb_max_m_s,
+                           limits.sink_max_m_s, ff)
 
 
 @dataclass(frozen=True)
@@ -117,6 +154,7 @@ class AttitudeSetpoint:
     roll_ned_rad: float
     thrust: float
     type_mask: int = TYPE_MASK_ATTITUDE_THRUST
+    pitch_ned_rad: float = 0.0
 
 
 def velocity_setpoint(
@@ -196,8 +234,10 @@ def attitude_setpoint(
     course_enu_rad: float,
     max_bank_deg: float,
     thrust: float = 0.5,
+    pitch_rad: float = 0.0,
 ) -> AttitudeSetpoint:
-    """Fixed-wing setpoint: roll = -bank (NED, right wing down positive), level pitch, yaw = course.
+    """Fixed-wing setpoint: roll = -bank (NED, right wing down positive), pitch (0: level; an
+    altitude profile gives the flight-path angle ``atan(climb / V)``, nose up positive), yaw = course.
 
     >>> sp = attitude_setpoint(9.80665, math.pi / 2, 60.0)   # 1 g left turn, flying north
     >>> round(math.degrees(sp.roll_ned_rad), 6)
@@ -206,7 +246,8 @@ def attitude_setpoint(
     roll_ned = -bank_angle_rad(a_cmd_m_s2, max_bank_deg)
     yaw_ned = frames.yaw_ned_from_enu(course_enu_rad)
     return AttitudeSetpoint(
-        q=quaternion_from_euler_ned(roll_ned, 0.0, yaw_ned),
+        q=quaternion_from_euler_ned(roll_ned, pitch_rad, yaw_ned),
         roll_ned_rad=roll_ned,
         thrust=float(min(1.0, max(0.0, thrust))),
+        pitch_ned_rad=pitch_rad,
     )

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Callable, Protocol
 
 from companion.guidance.factory import make_law
+from companion.guidance.profiled import ProfiledGuidance
 from companion.guidance.types import GuidanceLaw
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.io.state import PositionSample
@@ -155,5 +156,10 @@ class TickDriver:
 
 
 def make_guidance(mission: Mission, rate_hz: float) -> GuidanceLaw:
-    """The mission's guidance at the loop's rate and the mission's speed (flight, replay, synthetic)."""
-    return make_law(mission.path, mission.guidance, rate_hz, mission.speed_m_s)
+    """The mission's guidance at the loop's rate and the mission's speed (flight, replay, synthetic);
+    a mission whose speed varies along the path flies every law at the local speed V(s)."""
+    law = make_law(mission.path, mission.guidance, rate_hz, mission.speed_m_s)
+    profile = mission.profile
+    if profile is not None and not profile.constant_speed:
+        return ProfiledGuidance(law, profile)
+    return law

@@ -22,6 +22,7 @@ from typing import Callable
 from companion.errors import FlightAborted
 from companion.guidance.types import GuidanceLaw
 from companion.io.link import MavLink
+from companion.io.setpoints import AttitudeSetpoint
 from companion.io.state import PositionSample
 from companion.io.tlog import TlogWriter
 from companion.loop.driver import TickDriver
@@ -45,6 +46,11 @@ class FlightRecord:
     y_m: list = field(default_factory=list)
     sample_age_s: list = field(default_factory=list)
     hold: list = field(default_factory=list)
+    # For missions with an altitude / speed profile (vertical and speed errors, plots):
+    s_proj_m: list = field(default_factory=list)
+    alt_m: list = field(default_factory=list)
+    ground_speed_m_s: list = field(default_factory=list)
+    vz_cmd_ned_m_s: list = field(default_factory=list)
 
     def add(self, result: TickResult) -> None:
         """Append one finished tick."""
@@ -59,6 +65,11 @@ class FlightRecord:
         self.y_m.append(result.state.y_m if result.state is not None else math.nan)
         self.sample_age_s.append(result.sample_age_s)
         self.hold.append(result.is_hold)
+        self.s_proj_m.append(out.s_proj_m if out is not None else math.nan)
+        self.alt_m.append(-sample.z_ned_m if sample is not None else math.nan)
+        self.ground_speed_m_s.append(math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s)
+                                     if sample is not None else math.nan)
+        self.vz_cmd_ned_m_s.append(getattr(result.setpoint, "vz_ned_m_s", math.nan))
 
 
 class AutopilotClock:
@@ -102,6 +113,8 @@ class FlightLoop:
         self.hold_ticks = 0
         self.scheduler: FixedRateScheduler | None = None
         self._in_hold = False
+        # Speed, height and time of the last profile targets sent to a fixed wing.
+        self._plane_sent = (config.speed_m_s, math.nan, -math.inf)
         state = session.link.state
         course = course_from_sample(state.position, state.yaw_ned_rad, start_heading_rad,
                                     config.min_course_speed_m_s)
@@ -187,6 +200,7 @@ class FlightLoop:
         row[_I_SETPOINT_SENT] = 1.0 if sent else 0.0
         self.s.link.record_debug("guidance", result.tick, time_usec, row)
         self.record.add(result)
+        self._plane_profile_targets(result)
         if result.is_hold:
             self.hold_ticks += 1
         if result.is_hold != self._in_hold:
@@ -196,6 +210,29 @@ class FlightLoop:
                              f"--stale-s {self.s.opt.stale_s:g}); zero velocity, zero yaw rate")
             else:
                 self.s.event("position fresh again: guidance resumed")
+
+    def _plane_profile_targets(self, result: TickResult) -> None:
+        """A fixed wing flying a mission with a profile gets its height and speed through the
+        autopilot's own channels, sent (without waiting for an ack) when the target moves by
+        0.5 m or 0.2 m/s, and the height at least once a second: the speed command (as at the
+        start of the flight) and, on ArduPilot, GUIDED_CHANGE_ALTITUDE. PX4 takes the climb from
+        the attitude setpoint's pitch (``companion.loop.tick``)."""
+        profile = self.config.profile
+        if profile is None or result.output is None or not isinstance(result.setpoint, AttitudeSetpoint):
+            return
+        link = self.s.link
+        s_m = result.output.s_proj_m
+        v = profile.speed_m_s(s_m)
+        sent_v, sent_h, sent_t = self._plane_sent
+        if abs(v - sent_v) >= 0.2:
+            link.change_speed(v, wait_ack_s=0.0, retries=1)
+            sent_v = v
+        if link.info is not None and link.info.autopilot == "ardupilot":
+            h = profile.altitude_m(s_m)
+            if not abs(h - sent_h) < 0.5 or result.t_s - sent_t >= 1.0:
+                link.change_altitude(h, profile.limits.climb_max_m_s, wait_ack_s=0.0, retries=1)
+                sent_h, sent_t = h, result.t_s
+        self._plane_sent = (sent_v, sent_h, sent_t)
 
     def _live(self, result: TickResult, sched: FixedRateScheduler) -> None:
         link = self.s.link

@@ -49,7 +49,7 @@ from companion.loop.session import LinkSession, Status, result_text
 from companion.loop.tick import DEFAULT_STALE_S, TickConfig
 from companion.mission.model import ON_FINISH, Mission
 from companion.mission.placement import OriginShift, onto_autopilot_origin
-from companion.sim.metrics import tracking_metrics
+from companion.sim.metrics import profile_errors, tracking_metrics
 
 __all__ = ["FlightRecord", "FlightRunner", "FlyOptions", "OriginShift", "Status", "make_guidance",
            "onto_autopilot_origin"]
@@ -236,7 +236,7 @@ class FlightRunner:
             output = "attitude" if s.link.info.vehicle == "plane" else "velocity"
         config = TickConfig(speed_m_s=self.mission.speed_m_s, rate_hz=self.opt.rate_hz,
                             altitude_m=self.mission.altitude_m, stale_s=self.opt.stale_s, output=output,
-                            max_bank_deg=self.opt.max_bank_deg)
+                            max_bank_deg=self.opt.max_bank_deg, profile=self.mission.profile)
         if config.output == "attitude" and self._on_finish_action() == "land":
             raise FlightAborted("--on-finish land is not available for a fixed-wing flight; use rtl or loiter")
         return config
@@ -313,7 +313,10 @@ class FlightRunner:
         r = self.record
         keep = [i for i, h in enumerate(r.hold) if not h and math.isfinite(r.crosstrack_m[i])]
         m = tracking_metrics([r.t_s[i] for i in keep], [r.crosstrack_m[i] for i in keep],
-                             [r.a_cmd_m_s2[i] for i in keep], [r.phase[i] for i in keep])
+                             [r.a_cmd_m_s2[i] for i in keep], [r.phase[i] for i in keep],
+                             **profile_errors(self.mission.profile, [r.s_proj_m[i] for i in keep],
+                                              [r.alt_m[i] for i in keep],
+                                              [r.ground_speed_m_s[i] for i in keep]))
         sched = self.flight.scheduler if self.flight is not None else None
         stats = sched.stats().as_dict() if sched is not None else {}
         m.update({

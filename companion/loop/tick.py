@@ -14,6 +14,10 @@ Rules applied here (and therefore identically in flight and in replay):
 * the course handed to the guidance is the direction of the measured ground velocity; below
   ``min_course_speed_m_s`` it falls back to the attitude yaw, then to the previous course;
 * the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V);
+  a mission with a profile (``TickConfig.profile``) commands ``V(s)`` and the altitude hold on
+  ``h(s)`` with the feed-forward climb ``V(s) dh/ds`` at the tick's projection ``s``
+  (:func:`companion.io.setpoints.profile_targets`; the guidance gets ``V(s)`` through
+  :class:`companion.guidance.profiled.ProfiledGuidance`);
 * the velocity setpoint's direction is the **commanded course**, integrated tick by tick
   (``course_cmd += a_cmd / V * dt``), not re-derived from the measured course every tick. A vehicle
   whose velocity loop lags (time constant tau) trails the command by about ``omega * tau`` in a
@@ -39,6 +43,7 @@ from companion.io.setpoints import (
     VelocitySetpoint,
     attitude_setpoint,
     hold_setpoint,
+    profile_targets,
     velocity_setpoint,
 )
 from companion.io.state import PositionSample
@@ -97,6 +102,7 @@ class TickConfig:
     max_climb_m_s: float = 2.0
     thrust: float = 0.5
     max_course_lead_rad: float = math.pi / 4
+    profile: object = None  # the mission's PathProfile (altitude and speed along the path), or None
 
     def __post_init__(self) -> None:
         for name in ("speed_m_s", "rate_hz", "stale_s", "max_bank_deg", "alt_gain_1_s", "max_climb_m_s"):
@@ -220,17 +226,17 @@ def compute_tick(
         phase = output.phase
         a_cmd = float(output.a_cmd_m_s2)
         if phase == "finished" or not math.isfinite(a_cmd):
-            setpoint = hold_for(config, alt_m, True, course)
+            setpoint = hold_for(config, alt_m, True, course, output.s_proj_m)
         elif config.output == "attitude":
-            setpoint = attitude_setpoint(a_cmd, course, config.max_bank_deg, config.thrust)
+            setpoint = _attitude(config, a_cmd, course, alt_m, output.s_proj_m)
         else:
             base = course
             if prev_course_cmd_rad is not None and math.isfinite(prev_course_cmd_rad):
                 lead = frames.angle_diff_rad(prev_course_cmd_rad, course)
                 lead = max(-config.max_course_lead_rad, min(config.max_course_lead_rad, lead))
                 base = frames.wrap_pi(course + lead)
-            setpoint = velocity_setpoint(a_cmd, base, config.speed_m_s, config.dt_s, alt_m,
-                                         config.altitude_hold)
+            speed, hold = _targets(config, output.s_proj_m)
+            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold)
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
@@ -239,13 +245,33 @@ def compute_tick(
                         course_cmd_rad=course_cmd, prev_course_cmd_rad=prev_cmd, prev_course_rad=prev_course_rad)
 
 
+def _targets(config: TickConfig, s_m: float) -> tuple[float, object]:
+    """Speed and altitude hold at arc length ``s_m``: the mission's constants, or its profile's."""
+    if config.profile is None:
+        return config.speed_m_s, config.altitude_hold
+    return profile_targets(config.profile, s_m)
+
+
+def _attitude(config: TickConfig, a_cmd: float, course: float, alt_m: float, s_m: float) -> AttitudeSetpoint:
+    """The plane's setpoint; with an altitude profile it pitches to the flight-path angle of the
+    climb the altitude hold asks for (``atan(climb / V)``)."""
+    if config.profile is None:
+        return attitude_setpoint(a_cmd, course, config.max_bank_deg, config.thrust)
+    speed, hold = _targets(config, s_m)
+    pitch = math.atan2(hold.climb_m_s(alt_m), speed)
+    return attitude_setpoint(a_cmd, course, config.max_bank_deg, config.thrust, pitch)
+
+
 def hold_for(config: TickConfig, alt_m: float, have_sample: bool,
-             course_enu_rad: float) -> VelocitySetpoint | AttitudeSetpoint:
+             course_enu_rad: float, s_m: float = 0.0) -> VelocitySetpoint | AttitudeSetpoint:
     """The hold of this output: zero velocity and yaw rate (copter, rover; altitude held when a
-    sample exists), or wings level on the last course (plane: it cannot stop; the autopilot's own
-    setpoint-loss failsafe takes over if the hold lasts)."""
+    sample exists, at the profile's height at ``s_m`` for a mission with an altitude profile), or
+    wings level on the last course (plane: it cannot stop; the autopilot's own setpoint-loss
+    failsafe takes over if the hold lasts)."""
     if config.output == "attitude":
         return attitude_setpoint(0.0, course_enu_rad, config.max_bank_deg, config.thrust)
+    if have_sample and config.profile is not None:
+        return hold_setpoint(alt_m, profile_targets(config.profile, s_m, feed_forward=False)[1])
     return hold_setpoint(alt_m, config.altitude_hold if have_sample else None)
 
 
@@ -264,12 +290,14 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     if (sample is None or not (sample_age_s <= config.stale_s) or last is None or last.output is None
             or last.phase in ("finished", "hold") or not math.isfinite(last.output.a_cmd_m_s2)):
         fresh = sample is not None and sample_age_s <= config.stale_s
-        return hold_for(config, alt_m, fresh, last.course_rad if last is not None else 0.0)
+        s_m = last.output.s_proj_m if last is not None and last.output is not None else 0.0
+        return hold_for(config, alt_m, fresh, last.course_rad if last is not None else 0.0, s_m)
     a_cmd = float(last.output.a_cmd_m_s2) if turning else 0.0
     if config.output == "attitude":
-        return attitude_setpoint(a_cmd, last.course_rad, config.max_bank_deg, config.thrust)
+        return _attitude(config, a_cmd, last.course_rad, alt_m, last.output.s_proj_m)
     base = course_cmd_rad if math.isfinite(course_cmd_rad) else last.course_rad
-    return velocity_setpoint(a_cmd, base, config.speed_m_s, config.dt_s, alt_m, config.altitude_hold)
+    speed, hold = _targets(config, last.output.s_proj_m)
+    return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold)
 
 
 def _float32(x: float) -> float:

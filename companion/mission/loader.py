@@ -16,6 +16,7 @@ as one :class:`companion.errors.MissionError`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path as FilePath
 
@@ -25,6 +26,7 @@ import yaml
 from companion.errors import MissionError
 from companion.geometry import geodetic
 from companion.geometry.paths import Path, function_path, parametric_path, waypoint_path
+from companion.geometry.profile import PathProfile, ProfileLimits, build_profile, knots_table
 from companion.guidance.types import GuidanceParams
 from companion.mission import schema
 from companion.mission.expressions import ExpressionError, compile_expression
@@ -36,6 +38,8 @@ MAX_FILE_BYTES = 1_000_000
 DUPLICATE_TOLERANCE_M = 1e-3
 #: Samples used to check that expressions are finite over their range.
 CHECK_SAMPLES = 2001
+#: A smoothed altitude profile further than this from a waypoint's height is warned about.
+PROFILE_WARN_M = 0.5
 
 
 class _StrictLoader(yaml.SafeLoader):
@@ -176,6 +180,11 @@ class _Builder:
         self.frame = doc.get("frame") or "local_enu"
         self.path_schema_ok = True  # False when the schema already reported a problem in path
         self.origin_absent = True  # False when the file has an origin key (even an unusable one)
+        # Where the profile lists give their values: arc lengths of the waypoints / segment ends.
+        self.knots_s_m: np.ndarray | None = None
+        self.knot_key = ""  # "path.points_m" or "path.segments"
+        self.knot_count = 0  # how many values a list must have
+        self.dropped_closing_point = False
 
     def problem(self, where: str, message: str) -> None:
         self.problems.append(f"{self.source}: {where}: {message}")
@@ -202,15 +211,19 @@ class _Builder:
         path = self.build_path(origin) if doc.get("path") and self.path_schema_ok else None
         guidance = self.build_guidance()
         start = self.build_start()
+        profile = None
         if path is not None and guidance is not None:
             self.check_path_against_guidance(path, guidance)
+            profile = self.build_profile(path)
+            if profile is not None and guidance.speed_m_s != profile.speed_m_s(0.0):
+                guidance = dataclasses.replace(guidance, speed_m_s=profile.speed_m_s(0.0))
         if self.problems:
             return None
         return Mission(
             name=doc["name"],
             path=path,
-            speed_m_s=doc["speed_m_s"],
-            altitude_m=doc["altitude_m"],
+            speed_m_s=profile.speed_m_s(0.0) if profile is not None else doc["speed_m_s"],
+            altitude_m=profile.start_altitude_m if profile is not None else doc["altitude_m"],
             guidance=guidance,
             start=start,
             on_finish=doc["on_finish"],
@@ -219,6 +232,7 @@ class _Builder:
             frame=self.frame,
             origin=origin,
             warnings=tuple(self.warnings),
+            profile=profile,
         )
 
     def build_origin(self) -> GeodeticOrigin | None:
@@ -240,6 +254,10 @@ class _Builder:
         g = self.doc.get("guidance") or {}
         m = self.doc.get("midcourse") or {}
         speed = self.doc.get("speed_m_s")
+        if isinstance(speed, list):  # a profile: the guidance starts at the first speed
+            speed = speed[0] if speed and all(v is not None for v in speed) else None
+        elif isinstance(speed, str):  # an expression of s: checked with the path
+            speed = 5.0
         values = {
             "method": g.get("method"), "l1_m": g.get("l1_m"), "rate_hz": g.get("rate_hz"),
             "k1_max": g.get("k1_max"), "k2_max": g.get("k2_max"),
@@ -382,7 +400,12 @@ class _Builder:
             if bad:
                 return None
             # Points at flight height above the origin (the horizontal scale depends on height).
-            height_m = origin.alt_m + (self.doc.get("altitude_m") or 0.0)
+            alt = self.doc.get("altitude_m")
+            if isinstance(alt, list) and len(alt) == len(pts) and all(a is not None for a in alt):
+                alt = np.asarray(alt, dtype=float)  # one height per point
+            elif not isinstance(alt, float):
+                alt = 0.0
+            height_m = origin.alt_m + alt
             e, n, _ = geodetic.enu_from_geodetic(pts[:, 0], pts[:, 1], height_m,
                                                  origin.lat_deg, origin.lon_deg, origin.alt_m)
             pts = np.column_stack([e, n])
@@ -400,6 +423,7 @@ class _Builder:
                 ok = False
         if closed and len(pts) > 1 and math.hypot(*(pts[-1] - pts[0])) < DUPLICATE_TOLERANCE_M:
             pts = pts[:-1]
+            self.dropped_closing_point = True
         distinct = len({(round(a / DUPLICATE_TOLERANCE_M), round(b / DUPLICATE_TOLERANCE_M)) for a, b in pts})
         need = 3 if closed else 2
         if ok and distinct < need:
@@ -412,14 +436,20 @@ class _Builder:
         got = self.waypoint_array(p, origin)
         if got is None:
             return None
-        pts, _key = got
+        pts, key = got
         closed = bool(p.get("closed"))
         if p.get("corner_radius_m") is not None:
             from companion.mission.segments import filleted_waypoint_path
 
-            return filleted_waypoint_path(pts, p["corner_radius_m"], closed=closed,
+            path = filleted_waypoint_path(pts, p["corner_radius_m"], closed=closed,
                                           where="path", problem=self.problem)
-        return waypoint_path(pts, closed=closed)
+        else:
+            path = waypoint_path(pts, closed=closed)
+        if path is not None:
+            self.knots_s_m = waypoint_arc_lengths_m(path, pts)
+            self.knot_key = f"path.{key}"
+            self.knot_count = len(pts) + (1 if self.dropped_closing_point else 0)
+        return path
 
     def path_segments(self, p: dict, origin) -> Path | None:
         from companion.mission.segments import segments_path
@@ -438,8 +468,16 @@ class _Builder:
                 segs.append(("line", it["length_m"], 0.0))
             else:
                 segs.append(("arc", it["radius_m"], sign * math.radians(it["turn_deg"])))
-        return segments_path((float(x0), float(y0)), heading, segs, p["blend_m"],
+        path = segments_path((float(x0), float(y0)), heading, segs, p["blend_m"],
                              closed=bool(p.get("closed")), where="path", problem=self.problem)
+        if path is not None:
+            # Blending keeps every length: the segment ends are at the cumulative lengths.
+            lengths = [it["length_m"] if it["type"] == "line" else it["radius_m"] * math.radians(abs(it["turn_deg"]))
+                       for it in items]
+            self.knots_s_m = np.concatenate(([0.0], np.cumsum(lengths))) * (path.length_m / sum(lengths))
+            self.knot_key = "path.segments"
+            self.knot_count = len(items)
+        return path
 
     # --------------------------------------------------------------------- path vs guidance
     def check_path_against_guidance(self, path: Path, g: GuidanceParams) -> None:
@@ -464,3 +502,108 @@ class _Builder:
                       f"tighter than L1/2 = {g.l1_m / 2:g} m: it needs V^2/R = {v * v / r:.3g} m/s^2, "
                       f"more than fixed-L1 can command (2 V^2/L1 = {2 * v * v / g.l1_m:.3g} m/s^2) at "
                       f"V = {v:g} m/s, L1 = {g.l1_m:g} m")
+
+    # --------------------------------------------------------------------- altitude and speed
+    def build_profile(self, path: Path) -> PathProfile | None:
+        """The altitude and speed profile, or None when both are one number (a flat mission)."""
+        alt, speed = self.doc.get("altitude_m"), self.doc.get("speed_m_s")
+        if alt is None or speed is None:
+            return None  # reported by the schema
+        if isinstance(alt, float) and isinstance(speed, float):
+            return None
+        vert = self.doc.get("vertical") or {}
+        along = self.doc.get("along_track") or {}
+        values = (vert.get("climb_max_m_s"), vert.get("sink_max_m_s"), vert.get("accel_max_m_s2"),
+                  along.get("accel_max_m_s2"), vert.get("alt_gain_1_s"))
+        if any(v is None for v in values):
+            return None  # reported by the schema
+        limits = ProfileLimits(*values)
+        alt_target = self.profile_target(alt, "altitude_m", path, step=False, high=10000.0)
+        speed_target = self.profile_target(speed, "speed_m_s", path, step=True, high=100.0)
+        if alt_target is None or speed_target is None:
+            return None
+        profile = build_profile(path.length_m, path.closed, limits, alt_target=alt_target,
+                                speed_target=speed_target)
+        if isinstance(alt, list) and self.knots_s_m is not None:
+            self.warn_unreached_heights(profile, alt)
+        return profile
+
+    def profile_target(self, value, key: str, path: Path, step: bool, high: float):
+        """A number, or a function of the arc-length grid; None after reporting a problem."""
+        if isinstance(value, float):
+            return value
+        if isinstance(value, str):
+            try:
+                fn = compile_expression(value, "s")
+            except ExpressionError as err:
+                self.problem(key, f"expected a number, a list, or an expression of the arc length s, "
+                             f"got {schema._got(value)} ({'; '.join(err.problems)})")
+                return None
+            s = np.linspace(0.0, path.length_m, CHECK_SAMPLES)
+            got = np.asarray(fn(s), dtype=float) * np.ones_like(s)
+            bad = ~(np.isfinite(got) & (got > 0) & (got <= high))
+            if np.any(bad):
+                i = int(np.flatnonzero(bad)[0])
+                self.problem(key, f"expected values > 0 and <= {high:g} for s in [0, "
+                             f"{path.length_m:.4g}] (the path's arc length), got {got[i]} at s = {s[i]:.4g}")
+                return None
+            return fn
+        if any(v is None for v in value):
+            return None  # reported by the schema
+        if self.knots_s_m is None:
+            kind = (self.doc.get("path") or {}).get("type")
+            self.problem(key, f"expected a number or an expression of the arc length s for a {kind} "
+                         f"path, got a list (lists are for waypoints and segments paths)")
+            return None
+        knots = self.knots_s_m
+        values = list(value)
+        if self.knot_key == "path.segments":
+            if key == "altitude_m":
+                need, what = self.knot_count + 1, "the start height, then one per segment end"
+            else:
+                need, what = self.knot_count, "one per segment"
+                knots = knots[:-1]
+        else:
+            need, what = self.knot_count, f"one per point of {self.knot_key}"
+        if len(values) != need:
+            self.problem(key, f"expected {need} values ({what}), got {len(values)}")
+            return None
+        if self.knot_key == "path.segments" and key == "altitude_m" and path.closed:
+            if abs(values[-1] - values[0]) > 1e-9:
+                self.problem(key, f"expected the last height to equal the first for closed: true, got "
+                             f"{values[0]:g} and {values[-1]:g}")
+                return None
+            knots, values = knots[:-1], values[:-1]
+        elif self.dropped_closing_point:
+            values = values[:-1]
+        closed = path.closed
+        length = path.length_m
+        return lambda s: knots_table(s, knots, values, closed, length, step)
+
+    def warn_unreached_heights(self, profile: PathProfile, heights: list) -> None:
+        if self.knot_key == "path.segments":
+            names = ["path.start_m"] + [f"path.segments[{i}]" for i in range(len(heights) - 1)]
+        else:
+            names = [f"{self.knot_key}[{i}]" for i in range(len(heights))]
+        for name, s, h in zip(names, self.knots_s_m, heights):
+            got = profile.altitude_m(float(s))
+            if abs(got - h) > PROFILE_WARN_M:
+                self.warn(name, f"the altitude profile passes at {got:.1f} m instead of {h:g} m "
+                          f"(s = {float(s):.1f} m): the climb or the vertical acceleration limits "
+                          "(vertical:) spread the change over a longer stretch")
+
+
+def waypoint_arc_lengths_m(path: Path, points_enu_m: np.ndarray) -> np.ndarray:
+    """Arc length of each waypoint's closest path point, in flying order (unwrapped on loops)."""
+    out = []
+    hint = None
+    for x, y in points_enu_m:
+        s = path.project(float(x), float(y), hint)
+        if out and path.closed:
+            while s < out[-1] - 1e-9:
+                s += path.length_m
+        elif out:
+            s = max(s, out[-1])
+        out.append(s)
+        hint = s % path.length_m if path.closed else s
+    return np.asarray(out)

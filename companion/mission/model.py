@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 
 from companion.geometry.paths import Path
+from companion.geometry.profile import PathProfile
 from companion.guidance.types import GuidanceParams
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
@@ -65,6 +66,9 @@ class Mission:
     frame : the frame the file was written in (``local_enu``, ``local_ned``, ``geodetic``).
     origin : the WGS-84 origin of a ``geodetic`` mission, else None.
     warnings : one-line warnings found while loading (e.g. curvature too tight for L1).
+    profile : the altitude and speed along the path
+        (:class:`companion.geometry.profile.PathProfile`), or None when both are one number.
+        ``altitude_m`` and ``speed_m_s`` are then the profile's values at the path start.
     """
 
     name: str
@@ -79,6 +83,7 @@ class Mission:
     frame: str = "local_enu"
     origin: GeodeticOrigin | None = None
     warnings: tuple[str, ...] = ()
+    profile: PathProfile | None = None
 
     def __post_init__(self) -> None:
         if self.on_finish not in ON_FINISH:

@@ -9,12 +9,15 @@ what a mission file can represent and says what it drops:
 - A final ``NAV_RETURN_TO_LAUNCH`` / ``NAV_LAND`` / ``NAV_LOITER_UNLIM`` becomes ``on_finish:
   rtl | land | loiter`` (a land or loiter position becomes the last waypoint, flown at the mission
   altitude; a landing item's own altitude is ignored).
-- ``DO_CHANGE_SPEED`` sets ``speed_m_s`` (all of them must agree).
+- ``DO_CHANGE_SPEED`` (a ground or air speed) applies from the waypoint before it on: several
+  speeds make ``speed_m_s`` a per-waypoint profile. Climb / descent speeds are skipped with a note.
 - Other non-navigation items (camera, servo, ROI, conditions...) are skipped with a note.
-- Refused, because a single constant-altitude path cannot represent them: ``DO_JUMP`` loops,
-  timed or counted loiters, navigation commands in the middle that end a flight, survey /
-  corridor complex items, items in local or terrain-relative frames, waypoints at different
-  altitudes (pass ``altitude_m`` to flatten them), positions at 0, 0.
+- Each waypoint keeps its altitude (frame 3 above home; frame 0 AMSL minus home's altitude):
+  waypoints at different altitudes make ``altitude_m`` a per-waypoint profile (``altitude_m``
+  given to :func:`convert` flattens them to one height).
+- Refused, because a mission path cannot represent them: ``DO_JUMP`` loops, timed or counted
+  loiters, navigation commands in the middle that end a flight, survey / corridor complex items,
+  items in local or terrain-relative frames (no terrain model), positions at 0, 0.
 
 Positions are converted from WGS-84 to local ENU metres about the plan's home
 (``plannedHomePosition`` in a ``.plan``; item 0 of a WPL file, as QGroundControl and Mission
@@ -227,6 +230,8 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
     notes = list(data.notes)
     waypoints: list[tuple[Item, float]] = []  # (item, altitude above home)
     speeds: list[tuple[str, float]] = []
+    speed_from: dict[int, float] = {}  # waypoint index -> the speed flown from it on
+    first_speed: float | None = None  # a speed set before the first waypoint
     on_finish = "hold"
     finish_item: Item | None = None
     nav_items = [it for it in data.items if it.command < 100 and it.command not in TAKEOFF_CMDS]
@@ -295,10 +300,21 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
                             "NAV_LAND / NAV_RETURN_TO_LAUNCH / NAV_LOITER_UNLIM")
         elif cmd == 178:
             value = item.params[1]
-            if math.isfinite(value) and value > 0:
+            kind = item.params[0]
+            if math.isfinite(kind) and int(kind) in (2, 3):
+                notes.append(f"{source}: note: {item.where}: skipped DO_CHANGE_SPEED of a "
+                             f"{'climb' if int(kind) == 2 else 'descent'} speed (the climb and sink "
+                             "limits are vertical.climb_max_m_s and vertical.sink_max_m_s)")
+            elif math.isfinite(value) and value > 0:
                 speeds.append((item.where, value))
-                notes.append(f"{source}: note: {item.where}: DO_CHANGE_SPEED {value:g} m/s used as "
-                             "speed_m_s")
+                if waypoints:
+                    speed_from[len(waypoints) - 1] = value
+                    notes.append(f"{source}: note: {item.where}: DO_CHANGE_SPEED {value:g} m/s from "
+                                 f"{waypoints[-1][0].where} on")
+                else:
+                    first_speed = value
+                    notes.append(f"{source}: note: {item.where}: DO_CHANGE_SPEED {value:g} m/s from "
+                                 "the start")
             else:
                 notes.append(f"{source}: note: {item.where}: skipped DO_CHANGE_SPEED without a speed")
         else:
@@ -307,34 +323,40 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
         notes.append(f"{source}: note: {finish_item.where}: {finish_item.name} becomes on_finish: "
                      f"{on_finish}")
 
-    # Altitude: one constant height above home.
-    altitudes = [alt for _, alt in waypoints if alt is not None]
-    if altitude_m is None and altitudes:
-        lo, hi = min(altitudes), max(altitudes)
-        if hi - lo > ALTITUDE_TOLERANCE_M:
-            problems.append(f"{source}: waypoints at altitudes from {lo:g} m to {hi:g} m above home "
-                            "cannot be represented; expected one altitude (within "
-                            f"{ALTITUDE_TOLERANCE_M:g} m), or choose one with --altitude-m")
-        else:
-            altitude_m = float(np.mean(altitudes))
-    if altitude_m is not None and not altitude_m > 0:
-        problems.append(f"{source}: expected waypoints above home (altitude > 0), got {altitude_m:g} m")
+    # Altitude: one height above home per waypoint (one number when they agree within
+    # ALTITUDE_TOLERANCE_M); a landing point is flown at the height of the waypoint before it.
+    altitudes: list[float] = []
+    for _, alt in waypoints:
+        altitudes.append(alt if alt is not None else (altitudes[-1] if altitudes else math.nan))
+    if altitude_m is not None:
+        altitudes = [altitude_m] * len(waypoints)
+    elif altitudes and not math.isfinite(altitudes[0]):
+        altitudes = [next((a for a in altitudes if math.isfinite(a)), math.nan)] * len(altitudes)
+    for (item, _), alt in zip(waypoints, altitudes):
+        if math.isfinite(alt) and not alt > 0:
+            problems.append(f"{source}: {item.where}: expected a waypoint above home (altitude > 0), "
+                            f"got {alt:g} m")
 
-    # Speed: the user's, else the plan's DO_CHANGE_SPEED, else the plan's default, else 5 m/s.
+    # Speed: the user's, else each DO_CHANGE_SPEED from its waypoint on (the first from the plan's
+    # default speed, else 5 m/s, until a DO_CHANGE_SPEED sets it).
+    speed_list: list[float] = []
     if speed_m_s is None:
-        distinct = sorted({v for _, v in speeds})
-        if len(distinct) > 1:
-            problems.append(f"{source}: DO_CHANGE_SPEED items set {', '.join(f'{v:g}' for v in distinct)} "
-                            "m/s: a mission has one constant speed; expected one value, or choose "
-                            "one with --speed-m-s")
-        elif distinct:
-            speed_m_s = distinct[0]
-        elif data.speed_hint_m_s is not None:
-            speed_m_s = data.speed_hint_m_s
-            notes.append(f"{source}: note: speed_m_s {speed_m_s:g} from the plan's default speed")
-        else:
-            speed_m_s = DEFAULT_SPEED_M_S
-            notes.append(f"{source}: note: no speed in the file: speed_m_s {speed_m_s:g}")
+        current = first_speed
+        if current is None:
+            if data.speed_hint_m_s is not None:
+                current = data.speed_hint_m_s
+                notes.append(f"{source}: note: speed {current:g} m/s from the plan's default speed"
+                             + (" until the first DO_CHANGE_SPEED" if speeds else ""))
+            else:
+                current = DEFAULT_SPEED_M_S
+                notes.append(f"{source}: note: no speed in the file before the first DO_CHANGE_SPEED: "
+                             f"{current:g} m/s" if speeds else
+                             f"{source}: note: no speed in the file: speed_m_s {current:g}")
+        for i in range(len(waypoints)):
+            current = speed_from.get(i, current)
+            speed_list.append(current)
+    else:
+        speed_list = [speed_m_s] * len(waypoints)
 
     if len(waypoints) < 2 and not problems:
         problems.append(f"{source}: expected at least 2 waypoints with positions, got {len(waypoints)}")
@@ -349,17 +371,34 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
         origin = (first.lat_lon[0], first.lat_lon[1], 0.0)
     lat = np.array([it.lat_lon[0] for it, _ in waypoints])
     lon = np.array([it.lat_lon[1] for it, _ in waypoints])
-    east, north, _ = geodetic.enu_from_geodetic(lat, lon, origin[2] + altitude_m, *origin)
+    heights = np.asarray(altitudes, dtype=float)
+    east, north, _ = geodetic.enu_from_geodetic(lat, lon, origin[2] + heights, *origin)
     points = np.column_stack([east, north])
     keep = [0]
     for i in range(1, len(points)):
         if math.hypot(*(points[i] - points[keep[-1]])) < 1e-3:
             notes.append(f"{source}: note: {waypoints[i][0].where}: same position as the previous "
-                         "waypoint, dropped")
+                         "waypoint, dropped" + (f" (its altitude {heights[i]:g} m replaces "
+                                                 f"{heights[keep[-1]]:g} m)"
+                                                 if abs(heights[i] - heights[keep[-1]]) > 1e-9 else ""))
+            heights[keep[-1]] = heights[i]
+            speed_list[keep[-1]] = speed_list[i]  # a speed change at the dropped point still applies
         else:
             keep.append(i)
     points = points[keep]
     kept_items = [waypoints[i][0] for i in keep]
+    heights = heights[keep]
+    kept_speeds = [speed_list[i] for i in keep]
+    if float(np.max(heights) - np.min(heights)) <= ALTITUDE_TOLERANCE_M:
+        altitude_text = f"{float(np.mean(heights)):.3f}"
+    else:
+        altitude_text = "[" + ", ".join(f"{h:.3f}" for h in heights) + "]"
+        notes.append(f"{source}: note: waypoint altitudes from {float(np.min(heights)):g} m to "
+                     f"{float(np.max(heights)):g} m above home: altitude_m is a profile along the path")
+    if len(set(kept_speeds)) == 1:
+        speed_text = f"{kept_speeds[0]:g}"
+    else:
+        speed_text = "[" + ", ".join(f"{v:g}" for v in kept_speeds) + "]"
 
     lines = [
         f"# Imported from {FilePath(source).name} by `companion mission import`.",
@@ -369,8 +408,8 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
         f"name: {json.dumps(name)}",
         "frame: geodetic",
         f"origin: {{lat_deg: {origin[0]:.9f}, lon_deg: {origin[1]:.9f}, alt_m: {origin[2]:.3f}}}",
-        f"speed_m_s: {speed_m_s:g}",
-        f"altitude_m: {altitude_m:.3f}",
+        f"speed_m_s: {speed_text}",
+        f"altitude_m: {altitude_text}",
         "path:",
         "  type: waypoints",
         "  points_m:",

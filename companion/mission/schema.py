@@ -134,6 +134,30 @@ class Tagged:
         return f"a mapping with {self.tag}: one of " + ", ".join(self.variants)
 
 
+@dataclass(frozen=True)
+class OneOf:
+    """One of several kinds of value, told apart by the YAML type: a number, a list or a string.
+
+    At most one variant per kind (``Number``, ``Array``, ``String``); the value's type picks it.
+    """
+
+    variants: tuple
+    description: str = ""
+
+    def expected(self) -> str:
+        return " or ".join(v.expected() for v in self.variants)
+
+
+def _kind_of(spec: Any) -> type:
+    if isinstance(spec, Number):
+        return float
+    if isinstance(spec, Array):
+        return list
+    if isinstance(spec, String):
+        return str
+    raise TypeError(f"OneOf variant {spec!r}: expected Number, Array or String")
+
+
 # --------------------------------------------------------------------------------------------
 # The format
 # --------------------------------------------------------------------------------------------
@@ -237,6 +261,9 @@ PATH = Tagged(
     },
 )
 
+_ALTITUDE = Number(exclusive_minimum=0, maximum=10000)
+_SPEED = Number(exclusive_minimum=0, maximum=100)
+
 MISSION = Object(
     description="A companion mission: a reference path in local metres and how to fly it.",
     fields={
@@ -255,10 +282,44 @@ MISSION = Object(
                 },
             ),
             "the local origin on WGS-84 (frame: geodetic only)"),
-        "speed_m_s": Field(Number(exclusive_minimum=0, maximum=100), "constant ground speed V",
-                           required=True),
-        "altitude_m": Field(Number(exclusive_minimum=0, maximum=10000),
-                            "flight height above the local origin", default=10.0),
+        "speed_m_s": Field(
+            OneOf((_SPEED, Array(_SPEED, 1, 10000), String(variable="s"))),
+            "ground speed V: one number, or a profile along the path (a list: the speed from each "
+            "waypoint on, or of each segment; or an expression of the arc length s for a function "
+            "or parametric path), changed at along_track.accel_max_m_s2", required=True),
+        "altitude_m": Field(
+            OneOf((_ALTITUDE, Array(_ALTITUDE, 2, 10000), String(variable="s"))),
+            "flight height above the local origin: one number, or a profile along the path (a "
+            "list: one height per waypoint of a waypoints path, or the start height then one per "
+            "segment end of a segments path; or an expression of the arc length s in metres for a "
+            "function or parametric path), smoothed to the limits in vertical", default=10.0),
+        "vertical": Field(
+            Object(
+                fields={
+                    "climb_max_m_s": Field(Number(exclusive_minimum=0, maximum=50), "largest climb "
+                                           "rate of the altitude profile and of every vertical "
+                                           "command", default=2.0),
+                    "sink_max_m_s": Field(Number(exclusive_minimum=0, maximum=50), "largest sink "
+                                          "rate of the altitude profile and of every vertical "
+                                          "command", default=1.5),
+                    "accel_max_m_s2": Field(Number(exclusive_minimum=0, maximum=50), "largest "
+                                            "vertical acceleration of the altitude profile",
+                                            default=1.0),
+                    "alt_gain_1_s": Field(Number(exclusive_minimum=0, maximum=20), "gain of the "
+                                          "correction on altitude error added to the profile's "
+                                          "climb rate", default=1.0),
+                },
+            ),
+            "vertical limits of the vehicle, used to smooth the altitude profile", default={}),
+        "along_track": Field(
+            Object(
+                fields={
+                    "accel_max_m_s2": Field(Number(exclusive_minimum=0, maximum=50), "largest "
+                                            "along-track acceleration of a speed change",
+                                            default=1.0),
+                },
+            ),
+            "along-track limit of the vehicle, used to smooth the speed profile", default={}),
         "path": Field(PATH, "the reference path", required=True),
         "guidance": Field(
             Object(
@@ -379,6 +440,14 @@ def _validate(value, spec, path, problems):
             problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
             return None
         return int(value) if spec.integer else float(value)
+    if isinstance(spec, OneOf):
+        kind = (list if isinstance(value, list) else str if isinstance(value, str)
+                else float if isinstance(value, (int, float)) and not isinstance(value, bool) else None)
+        for variant in spec.variants:
+            if _kind_of(variant) is kind:
+                return _validate(value, variant, path, problems)
+        problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
+        return None
     if isinstance(spec, Constant):
         if isinstance(value, str):
             try:
@@ -471,6 +540,8 @@ def _json(spec: Any, description: str = "") -> dict:
                 out[key] = getattr(spec, attr)
         if spec.nonzero:
             out["not"] = {"const": 0}
+    elif isinstance(spec, OneOf):
+        out = {"oneOf": [_json(v) for v in spec.variants]}
     elif isinstance(spec, Constant):
         out = {"oneOf": [{"type": "number"}, {"type": "string", "maxLength": 200}]}
     elif isinstance(spec, String):

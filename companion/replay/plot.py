@@ -23,5 +23,7 @@ def plot_replay(result, out_path: str | Path) -> Path:
         a_compare=("a_cmd replayed", s["a_replayed_m_s2"]),
         mark_t_s=None if fd is None else ("first divergence", fd["time_s"]),
         track_label="logged track",
+        altitude=(None if getattr(result, "mission_profile", None) is None
+                  else (result.mission_profile, s["s_proj_m"], s["alt_m"])),
     )
     return save_figure(fig, out_path)

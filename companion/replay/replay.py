@@ -58,7 +58,7 @@ from companion.replay.flightlog import (
     read_flight,
 )
 from companion.replay.progress import ByteProgress
-from companion.sim.metrics import tracking_metrics
+from companion.sim.metrics import PROFILE_METRIC_KEYS, profile_errors, tracking_metrics
 
 
 
@@ -92,6 +92,7 @@ class ReplayResult:
     timing_s: dict = field(default_factory=dict)
     mission_path: object = None  # the mission's reference path (for plots)
     rate_hz: float = math.nan  # the loop rate replayed at
+    mission_profile: object = None  # the mission's altitude / speed profile, or None (for plots)
 
     @property
     def steps_compared(self) -> int:
@@ -127,6 +128,7 @@ class ReplayResult:
             "a_rms_m_s2": self.tracking["a_rms_m_s2"],
             "a_max_m_s2": self.tracking["a_max_m_s2"],
             "duration_s": self.tracking["duration_s"],
+            **{k: self.tracking[k] for k in PROFILE_METRIC_KEYS if k in self.tracking},
             "phases": self.tracking["phases"],
             "warnings": [w.as_dict() for w in self.flight.warnings],
             "notes": list(self.flight.notes),
@@ -157,7 +159,7 @@ def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
     ``--max-bank-deg`` is not recorded in the log; replay uses its default (35 deg).
     """
     return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                      output=output, stale_s=stale_s)
+                      output=output, stale_s=stale_s, profile=mission.profile)
 
 
 def flight_stale_s(flight: LoggedFlight) -> float:
@@ -233,7 +235,8 @@ _SERIES = ("t_s", "tick", "x_enu_m", "y_enu_m", "crosstrack_m", "a_logged_m_s2",
            "yaw_rate_logged_rad_s", "yaw_rate_replayed_rad_s", "vx_logged_m_s", "vy_logged_m_s",
            "vz_logged_m_s", "vx_replayed_m_s", "vy_replayed_m_s", "vz_replayed_m_s",
            "k1_logged", "k2_logged", "k1_replayed", "k2_replayed", "yaw_rate_diff_rad_s", "vel_diff_m_s",
-           "roll_logged_rad", "roll_replayed_rad", "attitude_diff_rad")
+           "roll_logged_rad", "roll_replayed_rad", "attitude_diff_rad",
+           "alt_m", "s_proj_m", "ground_speed_m_s")  # the last three: profile errors
 
 
 def _absdiff(a: float, b: float) -> float:
@@ -277,6 +280,7 @@ class _Replay:
         self.flight = flight
         self.tolerance = tolerance
         self.path = mission.path
+        self.profile = mission.profile
         self.companion_log = flight.kind == "companion"
         n = len(flight.ticks)
         self.cols: dict[str, list[float]] = {name: [math.nan] * n for name in _SERIES}
@@ -349,7 +353,11 @@ class _Replay:
         if sample is not None:
             cols["x_enu_m"][i] = sample.y_ned_m
             cols["y_enu_m"][i] = sample.x_ned_m
+            if self.profile is not None:
+                cols["alt_m"][i] = -sample.z_ned_m
+                cols["ground_speed_m_s"][i] = math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s)
         if out is not None:
+            cols["s_proj_m"][i] = out.s_proj_m
             cols["a_replayed_m_s2"][i], cols["k1_replayed"][i], cols["k2_replayed"][i] = out.a_cmd_m_s2, out.k1, out.k2
         else:
             cols["a_replayed_m_s2"][i] = 0.0
@@ -432,11 +440,12 @@ class _Replay:
                  "compared": np.ones(len(coast_diffs), dtype=bool)}, ["coast"] * len(coast_diffs))["coast"]
         switches = {"logged": _switches(cols["t_s"], phase_logged) if self.companion_log else [],
                     "replayed": _switches(cols["t_s"], phase_replayed)}
-        tracking = _tracking(cols, phase_logged)
+        tracking = _tracking(cols, phase_logged, mission.profile)
         cols["phase_logged"] = np.asarray(phase_logged, dtype=object)
         cols["phase_replayed"] = np.asarray(phase_replayed, dtype=object)
         return ReplayResult(self.flight, mission.name, tolerance, cols, self.first_divergence, per_phase, switches,
-                            tracking, {"replay_s": replay_s}, mission.path, rate_hz)
+                            tracking, {"replay_s": replay_s}, mission.path, rate_hz,
+                            mission.profile)
 
 
 _I_PREV, _I_PREV_CMD = DEBUG_INDEX["prev_course_rad"], DEBUG_INDEX["prev_course_cmd_rad"]
@@ -580,13 +589,16 @@ def _switches(t_s: np.ndarray, phases: list[str]) -> list[dict]:
     return out
 
 
-def _tracking(cols: dict, phases: list[str]) -> dict:
-    """Tracking figures of the flight itself, over the ticks with a cross-track value."""
+def _tracking(cols: dict, phases: list[str], profile=None) -> dict:
+    """Tracking figures of the flight itself, over the ticks with a cross-track value (and, for a
+    mission with a profile, the vertical and speed errors)."""
     d = cols["crosstrack_m"]
     a = cols["a_logged_m_s2"]
     keep = np.isfinite(d) & np.isfinite(a)
     names = [p for p, k in zip(phases, keep) if k]
-    m = tracking_metrics(cols["t_s"][keep], d[keep], a[keep], names)
+    m = tracking_metrics(cols["t_s"][keep], d[keep], a[keep], names,
+                         **profile_errors(profile, cols["s_proj_m"][keep], cols["alt_m"][keep],
+                                          cols["ground_speed_m_s"][keep]))
     return {k: (_json_float(v) if isinstance(v, float) else v) for k, v in m.items()}
 
 

@@ -228,7 +228,7 @@ def write_synthetic_flight(
     write_mission_beside(tlog_path, mission.source_text)
     guidance = make_guidance(mission, rate_hz)
     config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                        output=output, stale_s=stale_s)
+                        output=output, stale_s=stale_s, profile=mission.profile)
     dt = 1.0 / rate_hz
     autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
 

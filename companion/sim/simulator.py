@@ -97,7 +97,7 @@ def default_t_max_s(path: Path, start: VehicleState) -> float:
 
 def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
              model: LagModel | None = None, t_max_s: float | None = None,
-             keep_outputs: bool = False) -> SimResult:
+             keep_outputs: bool = False, profile=None) -> SimResult:
     """Fly ``law`` from ``start`` until it reports ``finished`` or ``t_max_s`` elapses.
 
     Parameters
@@ -109,6 +109,9 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
     model : None for the paper's ideal inner loop, or a :class:`LagModel`.
     t_max_s : time limit (default :func:`default_t_max_s`).
     keep_outputs : also keep every tick's :class:`GuidanceOutput` in ``result.outputs``.
+    profile : a :class:`companion.geometry.profile.PathProfile` whose speed changes along the
+        path: the vehicle then flies each tick at ``V(s)`` of the previous tick's projection (the
+        start's speed first); None (default) flies at ``start.speed_m_s`` throughout.
 
     Returns
     -------
@@ -164,6 +167,8 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
         else:
             a_next = a_mean = target
         cols["a_ach"].append(a_ach)
+        if profile is not None:
+            V = profile.speed_m_s(out.s_proj_m)
         x, y, psi = unicycle_step(x, y, psi, V, a_mean, dt)
         x += wind[0] * dt
         y += wind[1] * dt

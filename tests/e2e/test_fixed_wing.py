@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from pymavlink import mavutil
 
 from companion.io.mock_process import MockProcess, free_udp_port
@@ -60,3 +61,52 @@ def test_plane_flies_the_path_with_bank_angle_setpoints(tmp_path):
     d = np.asarray(runner.record.crosstrack_m)
     tail = d[len(d) // 2:]
     assert float(np.sqrt(np.mean(tail ** 2))) < 3.0
+
+
+PROFILE_MISSION = """\
+name: plane-climb
+frame: local_enu
+speed_m_s: [15.0, 18.0, 18.0]
+altitude_m: [50.0, 70.0, 70.0]
+path:
+  type: waypoints
+  points_m: [[0, 0], [300, 0], [600, 0]]
+guidance: {l1_m: 40.0, method: corrector, rate_hz: 50}
+midcourse: {circle_radius_m: 60.0, trigger: "off"}
+on_finish: loiter
+"""
+
+
+def test_an_ardupilot_plane_gets_the_profile_through_its_height_and_speed_commands(tmp_path):
+    """ArduPlane in GUIDED holds the height given by GUIDED_CHANGE_ALTITUDE and the speed given
+    by GUIDED_CHANGE_SPEED: the profile's climb (20 m over 300 m at 15 m/s, 1 m/s) and its speed
+    change reach the plane through them."""
+    m = parse_mission(PROFILE_MISSION, "plane-climb.yaml")
+    port = free_udp_port()
+    mock = MockProcess(["--autopilot", "ardupilot", "--vehicle", "plane", "--link", f"udpout:127.0.0.1:{port}",
+                        "--speedup", "5", "--start-ned=0,-20", "--start-alt-m", "50", "--start-yaw-deg=90",
+                        "--start-airborne", "--quiet", "--offboard-loss-s", "5"])
+    mock.start(timeout_s=60.0)
+    opts = FlyOptions(connect=f"udpin:127.0.0.1:{port}", rate_hz=50.0, clock="autopilot",
+                      tlog_path=str(tmp_path / "p.tlog"), heartbeat_timeout_s=30.0, link_timeout_s=10.0,
+                      max_duration_s=120.0, max_bank_deg=35.0)
+    runner = FlightRunner(m, opts, Status(quiet=True))
+    try:
+        runner.run()
+    finally:
+        mock.stop()
+    assert runner.summary["exit"] == "finished", runner.events
+    conn = mavutil.mavlink_connection(str(tmp_path / "p.tlog"))
+    alts, speeds = [], []
+    while (msg := conn.recv_match()) is not None:
+        if msg.get_type() == "COMMAND_LONG" and msg.command == 43001:
+            alts.append(msg.param7)
+        elif msg.get_type() == "COMMAND_LONG" and msg.command == 43000:
+            speeds.append(msg.param2)
+    assert alts and min(alts) >= 50.0 - 1e-6 and max(alts) == pytest.approx(70.0, abs=0.5)
+    assert speeds[0] == 15.0 and max(speeds) == pytest.approx(18.0, abs=0.2)
+    # The plane followed: its height late in the flight is near 70 m (the mock's plane climbs
+    # at up to its own limit toward the commanded height).
+    assert runner.summary["h_rms_m"] < 5.0
+    alt = [a for a in runner.record.alt_m if math.isfinite(a)]
+    assert max(alt) == pytest.approx(70.0, abs=2.0)

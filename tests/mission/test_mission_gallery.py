@@ -20,7 +20,8 @@ from companion.mission import load_mission
 from companion.sim.metrics import tracking_metrics
 
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
-GALLERY = ["racetrack.yaml", "figure_eight.yaml", "survey_lawnmower.yaml", "qgc_inspection.yaml"]
+GALLERY = ["racetrack.yaml", "figure_eight.yaml", "survey_lawnmower.yaml", "qgc_inspection.yaml",
+           "survey_terrain_steps.yaml"]
 REACHED_M = 1.0  # "on the path": cross-track error below this
 STAYS_WITHIN_M = 2.0  # after reaching it, the vehicle never strays further
 
@@ -37,8 +38,13 @@ def fly(mission) -> dict:
     approach_m = math.hypot(start.x_m - path.start_xy_m[0], start.y_m - path.start_xy_m[1])
     # Enough time to approach (allowing a detour of 3x the distance plus turns) and fly the path.
     t_max_s = (3.0 * approach_m + 1.2 * path.length_m) / mission.speed_m_s + 60.0
-    result = simulate(path, TwoPhaseGuidance(path, params), state, params, t_max_s=t_max_s,
-                      keep_outputs=True)
+    law = TwoPhaseGuidance(path, params)
+    profile = mission.profile if mission.profile is not None and not mission.profile.constant_speed else None
+    if profile is not None:  # fly the speed profile: every law at the local speed
+        from companion.guidance.profiled import ProfiledGuidance
+
+        law = ProfiledGuidance(law, profile)
+    result = simulate(path, law, state, params, t_max_s=t_max_s, keep_outputs=True, profile=profile)
     d = np.abs(result.crosstrack_m)
     on_path = np.flatnonzero((d < REACHED_M) & (np.array(result.phase) == "close_range"))
     reached = on_path.size > 0

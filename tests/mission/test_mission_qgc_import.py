@@ -144,13 +144,55 @@ def test_rtl_in_the_middle_is_refused(tmp_path, capsys):
                      "of the mission cannot be represented; expected it only as the last navigation item"]
 
 
-def test_different_altitudes_are_refused_unless_one_is_chosen(tmp_path, capsys):
+def test_waypoint_altitudes_become_a_profile_without_flags_and_altitude_m_still_flattens(tmp_path, capsys):
+    import yaml
+
     items = survey_items()
-    items[3]["params"][6] = 60.0
-    src, lines = refused(tmp_path, capsys, "alt.plan", plan_text(items))
-    assert len(lines) == 1 and "waypoints at altitudes from 40 m to 60 m above home cannot be represented" in lines[0]
+    items[3]["params"][6] = 60.0  # the second waypoint
+    code, src, out = run_import(tmp_path, "alt.plan", plan_text(items))
+    err = capsys.readouterr().err
+    assert code == 0, err
+    doc = yaml.safe_load(out.read_text())
+    assert doc["altitude_m"] == [40.0, 60.0, 40.0, 40.0]
+    assert f"{src}: note: waypoint altitudes from 40 m to 60 m above home: altitude_m is a profile along the path" in err
+    mission = load_mission(out)
+    # Each waypoint converted at its own height lies on the path.
+    for (lat, lon), h in zip(WAYPOINTS, doc["altitude_m"]):
+        assert_on_path(mission, [(lat, lon)], h, HOME)
+    assert mission.profile is not None and mission.altitude_m == pytest.approx(40.0)
     code, _, out = run_import(tmp_path, "alt.plan", plan_text(items), "--altitude-m", "50")
-    assert code == 0 and load_mission(out).altitude_m == 50.0
+    assert code == 0 and load_mission(out).altitude_m == 50.0 and load_mission(out).profile is None
+
+
+def test_do_change_speed_items_apply_from_the_waypoint_before_them(tmp_path, capsys):
+    import yaml
+
+    items = survey_items()  # 7 m/s before the first waypoint
+    items.insert(4, simple_item(178, 2, [1, 9.0, -1, 0, 0, 0, 0], 30))  # after waypoint 1
+    items.insert(7, simple_item(178, 2, [1, 4.0, -1, 0, 0, 0, 0], 31))  # after waypoint 2
+    items.insert(8, simple_item(178, 2, [2, 1.5, -1, 0, 0, 0, 0], 32))  # a climb speed: skipped
+    code, src, out = run_import(tmp_path, "speeds.plan", plan_text(items))
+    err = capsys.readouterr().err
+    assert code == 0, err
+    doc = yaml.safe_load(out.read_text())
+    assert doc["speed_m_s"] == [7, 9, 4, 4]
+    assert "mission.items[8]: skipped DO_CHANGE_SPEED of a climb speed" in err
+    mission = load_mission(out)
+    p = mission.profile
+    s1 = mission.path.project(*_enu(WAYPOINTS[1]))
+    s2 = mission.path.project(*_enu(WAYPOINTS[2]))
+    # 7 -> 9 m/s from waypoint 1 at 1 m/s^2: (81 - 49) / 2 = 16 m; 9 -> 4 from waypoint 2: 32.5 m.
+    assert p.speed_m_s(s1 - 1.0) == pytest.approx(7.0)
+    assert p.speed_m_s(s1 + 8.0) == pytest.approx(math.sqrt(49.0 + 16.0), abs=0.01)
+    assert p.speed_m_s(s1 + 16.5) == pytest.approx(9.0)
+    assert p.speed_m_s(s2 - 1.0) == pytest.approx(9.0)
+    assert p.speed_m_s(s2 + 20.0) == pytest.approx(math.sqrt(81.0 - 40.0), abs=0.01)
+    assert p.speed_m_s(s2 + 33.0) == pytest.approx(4.0)
+
+
+def _enu(lat_lon):
+    e, n, _ = enu_from_geodetic(lat_lon[0], lat_lon[1], HOME[2] + 40.0, *HOME)
+    return float(e), float(n)
 
 
 def test_complex_survey_item_terrain_frame_and_zero_position_are_refused_together(tmp_path, capsys):
@@ -198,3 +240,31 @@ def test_gallery_import_is_current(tmp_path):
     m = load_mission(missions / "qgc_inspection.yaml")
     assert_on_path(m, points, m.altitude_m, tuple(plan["mission"]["plannedHomePosition"]))
     assert np.isfinite(m.path.length_m)
+
+
+def test_wpl_waypoints_keep_their_own_heights_in_frames_0_and_3(tmp_path, capsys):
+    import yaml
+
+    # Item 3 at 40 m above home (frame 3); item 4 at 599.09 m AMSL (frame 0): 599.09 - 584.09 = 15.
+    text = WPL.replace("-35.36120000\t149.16620000\t25.000000", "-35.36120000\t149.16620000\t40.000000")
+    text = text.replace("609.090000", "599.090000")
+    # A DO_CHANGE_SPEED (ground speed 9 m/s) after item 3: the speed from that waypoint on.
+    text = text.replace("5\t0\t3\t183", "5\t0\t3\t178\t1\t9\t-1\t0\t0\t0\t0\t1\n55\t0\t3\t183")
+    code, src, out = run_import(tmp_path, "route.waypoints", text)
+    err = capsys.readouterr().err
+    assert code == 0, err
+    doc = yaml.safe_load(out.read_text())
+    # The landing point (item 6) is flown at the height of the waypoint before it.
+    assert doc["altitude_m"] == [25.0, 40.0, 15.0, 15.0]
+    assert doc["speed_m_s"] == [5, 5, 9, 9]  # no speed before it: 5 m/s
+    mission = load_mission(out)
+    home = (-35.363262, 149.165237, 584.09)
+    for (lat, lon), h in zip(WPL_POINTS, doc["altitude_m"]):
+        assert_on_path(mission, [(lat, lon)], h, home)
+
+
+def test_terrain_relative_waypoints_are_refused_in_one_line(tmp_path, capsys):
+    text = WPL.replace("2\t0\t3\t16", "2\t0\t10\t16")
+    src, lines = refused(tmp_path, capsys, "terrain.waypoints", text)
+    assert lines == [f"companion: error: {src}: line 4 (item 2): terrain-relative altitude cannot be represented; expected "
+                     "frame 3 (relative to home) or 0 (AMSL)"]
