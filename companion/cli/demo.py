@@ -17,7 +17,14 @@ import threading
 import time
 from pathlib import Path
 
-from companion.cli.fly import add_flight_options, format_loop_line, format_metrics_table, json_safe, options_from_args
+from companion.cli.fly import (
+    add_flight_options,
+    format_loop_line,
+    format_metrics_table,
+    health_options_from_args,
+    json_safe,
+    options_from_args,
+)
 from companion.errors import CompanionError, LinkError
 
 DEFAULT_MISSION = "missions/paper_far_start.yaml"
@@ -37,7 +44,7 @@ def register(subparsers) -> None:
     p.add_argument("--plot", default=None, help="PNG path (default: beside the tlog)")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG")
     p.add_argument("--seed", type=int, default=1)
-    add_flight_options(p, connect_required=False)
+    add_flight_options(p, connect_required=False, tlog_prefix="demo")
     # The demo ticks on the autopilot's clock unless told otherwise (parser defaults win).
     p.set_defaults(func=run, clock="autopilot")
 
@@ -148,6 +155,7 @@ def run(args) -> int:
     from companion.mission import load_mission
 
     mission = load_mission(find_mission(args.mission))
+    health_options_from_args(args)  # bad thresholds: one line, exit 2, before the mock starts
     if not args.tlog:
         p = default_tlog_path()
         args.tlog = str(p.with_name(p.name.replace("flight-", "demo-")))

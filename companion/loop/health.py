@@ -48,10 +48,10 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-from companion.errors import CompanionError
+from companion.errors import CompanionError, FlightUnhealthy
 
 #: Process exit code of a flight stopped by a health failsafe (docs/failsafes.md).
-EXIT_HEALTH_STOP = 3
+EXIT_HEALTH_STOP = FlightUnhealthy.exit_code
 
 #: Verdict levels, mildest first.
 LEVELS = ("ok", "warn", "hold", "stop")
@@ -135,6 +135,10 @@ class HealthVerdict:
     @property
     def ok(self) -> bool:
         return self.level == "ok"
+
+    def error(self) -> FlightUnhealthy:
+        """The exception the flight loop raises on a ``stop`` (exit code 3, this reason)."""
+        return FlightUnhealthy(f"flight-health failsafe: {self.reason}")
 
 
 _OK = HealthVerdict()

@@ -9,6 +9,7 @@ measured over 2 s.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -273,3 +274,42 @@ def test_bad_options_are_one_line_errors(field, value):
     with pytest.raises(CompanionError) as err:
         HealthOptions(**{field: value})
     assert "\n" not in str(err.value) and field.split("_")[0] in str(err.value)
+
+
+# ------------------------------------------------------------------ command line
+
+
+def test_fly_flags_reach_the_monitor_options():
+    from companion.cli.fly import health_options_from_args
+    from companion.cli.main import build_parser
+
+    args = build_parser().parse_args(["fly", "m.yaml", "--connect", "udpin:0.0.0.0:14540",
+                                      "--no-progress-s", "7", "--max-xtrack-m", "40",
+                                      "--xtrack-hold-s", "1.5", "--clock-tolerance", "0"])
+    assert health_options_from_args(args) == HealthOptions(no_progress_s=7.0, max_xtrack_m=40.0,
+                                                           xtrack_hold_s=1.5, clock_tolerance=0.0)
+    defaults = build_parser().parse_args(["demo"])
+    assert health_options_from_args(defaults) == HealthOptions()
+
+
+def test_bad_threshold_is_refused_before_anything_opens(tmp_path, capsys, monkeypatch):
+    from companion.cli.main import main
+
+    monkeypatch.chdir(tmp_path)
+    mission = Path(__file__).resolve().parents[2] / "missions" / "racetrack.yaml"
+    code = main(["fly", str(mission), "--connect", "udpin:127.0.0.1:9", "--no-progress-s", "-2"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.strip() == "companion: error: --no-progress-s: expected a number >= 0, got -2.0"
+    assert not (tmp_path / "logs").exists()
+
+
+def test_demo_help_names_the_demo_log():
+    from companion.cli.main import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command").choices
+    demo_help = sub["demo"].format_help()
+    fly_help = sub["fly"].format_help()
+    assert "logs/demo-<UTC time>.tlog" in " ".join(demo_help.split())
+    assert "logs/flight-<UTC time>.tlog" in " ".join(fly_help.split())
