@@ -15,7 +15,7 @@ def add_flight_options(parser, *, connect_required: bool = True, tlog_prefix: st
     """
     if connect_required:
         parser.add_argument("--connect", required=True, metavar="LINK",
-                            help="udpin:0.0.0.0:14540 (PX4 SITL), tcp:127.0.0.1:5760 (ArduPilot SITL), "
+                            help="udpin:0.0.0.0:14540 or udp:0.0.0.0:14540 (listen: PX4 SITL), tcp:127.0.0.1:5760 (ArduPilot SITL), "
                                  "udpout:HOST:PORT, or /dev/ttyACM0,921600")
         parser.add_argument("--autopilot", choices=("auto", "px4", "ardupilot"), default="auto",
                             help="expected autopilot (default: detect from its heartbeat)")
