@@ -145,8 +145,10 @@ def json_safe(obj):
 
 
 def format_metrics_table(summary: dict) -> str:
-    """The per-phase metrics table printed at the end of a flight."""
-    rows = [("all", summary)] + list(summary.get("phases", {}).items())
+    """The per-phase metrics table of sim, fly and demo: ``overall``, then one row per phase."""
+    from companion.sim.metrics import OVERALL_ROW
+
+    rows = [(OVERALL_ROW, summary)] + list(summary.get("phases", {}).items())
     lines = [f"{'phase':<12} {'d_rms_m':>9} {'d_max_m':>9} {'a_rms_m_s2':>11} {'a_max_m_s2':>11} "
              f"{'duration_s':>11}"]
     for name, m in rows:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 
+from companion.cli.fly import format_metrics_table
 from companion.errors import MissionError
 from companion.guidance.types import METHODS, VehicleState
 
@@ -86,10 +87,10 @@ def run(args) -> int:
         summary["midcourse"] = {"case": plan.case, "rule": plan.rule, "circle": plan.chosen.circle.name,
                                 "contact_xy_m": list(plan.chosen.contact_xy_m),
                                 "a_cmd_m_s2": plan.chosen.a_cmd_m_s2}
-    if args.plot:
-        _plot(args.plot, mission, path, result)
     if args.json:
         print(json.dumps(summary, indent=2))
+        if args.plot:
+            _plot(args.plot, mission, path, result)
         return 0
     if params.method == "predictive":  # chooses its own look-ahead: show its tuning instead of L1
         tuning = (f"lambda {params.lambda_s4:g} s^4, lag {params.rollout_tau_s:g} s, "
@@ -104,13 +105,9 @@ def run(args) -> int:
         c = plan.chosen
         print(f"mid-course: case {plan.case}, {c.circle.name} initiation circle, contact point "
               f"({c.contact_xy_m[0]:.2f}, {c.contact_xy_m[1]:.2f}) m, constant command {c.a_cmd_m_s2:.3f} m/s^2")
-    header = f"{'':14s}{'d_rms_m':>10s}{'d_max_m':>10s}{'a_rms_m_s2':>12s}{'a_max_m_s2':>12s}{'duration_s':>12s}"
-    print(header)
-    rows = [("overall", metrics)] + list(metrics["phases"].items())
-    for name, m in rows:
-        print(f"{name:14s}{m['d_rms_m']:10.3f}{m['d_max_m']:10.3f}{m['a_rms_m_s2']:12.3f}"
-              f"{m['a_max_m_s2']:12.3f}{m['duration_s']:12.2f}")
+    print(format_metrics_table(metrics))
     if args.plot:
+        _plot(args.plot, mission, path, result)
         print(f"plot written to {args.plot}")
     return 0
 
@@ -122,6 +119,8 @@ def _finite_or_none(value):
 
 
 def _plot(out_path: str, mission, path, result) -> None:
+    """Written after the figures are printed: without matplotlib (a core install) the figures
+    are on stdout and one line on stderr names the ``plot`` extra (exit code 2)."""
     from companion.plots import flight_figure, save_figure
 
     fig = flight_figure(path, result.t_s, result.x_m, result.y_m, result.crosstrack_m,
