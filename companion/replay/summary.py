@@ -154,6 +154,7 @@ def summarise_log(
         "systems": systems,
         "messages": messages,
         "modes": modes,
+        "gap_threshold_s": float(gap_threshold_s),
         "link_gaps": link_gaps,
     }
 
@@ -183,7 +184,8 @@ def format_summary(summary: dict, max_gaps_per_source: int = 5) -> str:
     for m in summary["modes"]:
         lines.append(f"  {m['time_s']:8.2f} s  {m['system']:>3}/{m['component']:<3} {m['mode']:<16} "
                      f"{'armed' if m['armed'] else 'disarmed'}")
-    lines += ["", f"link gaps longer than {GAP_THRESHOLD_S} s (per sender):"]
+    threshold_s = summary.get("gap_threshold_s", GAP_THRESHOLD_S)
+    lines += ["", f"link gaps longer than {threshold_s:g} s (per sender):"]
     by_source: dict[tuple[int, int], list[dict]] = defaultdict(list)
     for g in summary["link_gaps"]:
         by_source[(g["system"], g["component"])].append(g)
