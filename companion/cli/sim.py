@@ -72,7 +72,8 @@ def run(args) -> int:
         raise MissionError(f"--t-max-s: expected a number > 0, got {args.t_max_s}")
     start = VehicleState(x0, y0, h0, mission.speed_m_s)
     law = TwoPhaseGuidance(path, params)
-    result = simulate(path, law, start, params, t_max_s=args.t_max_s)
+    with SimProgress(_expected_s(path, start, args.t_max_s), f"sim {mission.name}") as progress:
+        result = simulate(path, _Reporting(law, progress), start, params, t_max_s=args.t_max_s)
     metrics = result.metrics
     summary = {
         "mission": mission.name, "method": params.method,
@@ -110,6 +111,51 @@ def run(args) -> int:
         _plot(args.plot, mission, path, result)
         print(f"plot written to {args.plot}")
     return 0
+
+
+class SimProgress:
+    """Progress of a simulation in simulated seconds: a tqdm bar on stderr (the ``progress``
+    extra), shown only on a terminal and only once the run has taken a second of wall time, so
+    a short run and a redirected output stay clean."""
+
+    def __init__(self, total_s: float, description: str, enabled: bool | None = None):
+        from companion.replay.progress import ByteProgress
+
+        self._bar = ByteProgress(total_s, description, enabled=enabled, unit="s")
+
+    def update_to(self, t_s: float) -> None:
+        self._bar.update_to(t_s)
+
+    def __enter__(self) -> "SimProgress":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._bar.__exit__(*exc)
+
+
+class _Reporting:
+    """The guidance law, reporting each step's simulated time to a progress bar."""
+
+    def __init__(self, law, progress: SimProgress):
+        self._law = law
+        self._progress = progress
+
+    def step(self, t_s, state):
+        self._progress.update_to(t_s)
+        return self._law.step(t_s, state)
+
+    def __getattr__(self, name):
+        return getattr(self._law, name)
+
+
+def _expected_s(path, start, t_max_s) -> float:
+    """The nominal flight time (reach the path start, then fly it), capped by the time limit."""
+    from companion.sim.simulator import default_t_max_s
+
+    sx, sy = path.start_xy_m
+    nominal_s = (path.length_m + math.hypot(start.x_m - sx, start.y_m - sy)) / start.speed_m_s
+    limit_s = t_max_s if t_max_s is not None else default_t_max_s(path, start)
+    return round(min(nominal_s, limit_s), 1)
 
 
 def _finite_or_none(value):

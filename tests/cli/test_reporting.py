@@ -124,3 +124,28 @@ def test_demo_on_a_core_install_prints_the_figures_and_names_the_extra(no_matplo
     out, err = capsys.readouterr()
     assert code == 2 and "overall" in out  # a plot asked for by name: exit 2, figures kept
     assert err.strip() == f"companion: error: {NO_PLOT_LINE}"
+
+
+def test_long_sim_shows_progress_on_a_terminal(monkeypatch, capsys):
+    pytest.importorskip("tqdm")
+    import io
+
+    import companion.replay.progress as progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    term = Terminal()
+    monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)
+    monkeypatch.setattr(sys, "stderr", term)
+    code = main(["sim", str(MISSIONS / "paper_sine.yaml"), "--t-max-s", "10"])
+    assert code == 0
+    text = term.getvalue()
+    assert "sim paper-sine" in text and "/10.0 [" in text  # simulated seconds of the 10 s limit
+    assert "overall" in capsys.readouterr().out
+
+
+def test_sim_on_a_pipe_shows_no_progress(capsys):
+    assert main(["sim", str(MISSIONS / "paper_sine.yaml"), "--t-max-s", "3"]) == 0
+    assert capsys.readouterr().err == ""
