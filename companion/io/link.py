@@ -77,6 +77,11 @@ MAV_CMD_GUIDED_CHANGE_SPEED = 43000
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 
+MAV_SEVERITY_WARNING = 4
+MAV_SEVERITY_NOTICE = 5
+MAV_SEVERITY_INFO = 6
+STATUSTEXT_CHARS = 50
+
 MAV_RESULT_NAMES = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "UNSUPPORTED",
                     4: "FAILED", 5: "IN_PROGRESS", 6: "CANCELLED"}
 
@@ -523,6 +528,7 @@ class MavLink:
         self._restarts_at_position = 0  # self.restarts when the position held was accepted
         self._peer_last_s = math.nan
         self._last_own_heartbeat_s = -math.inf
+        self._event_id = 0  # the id of the last chunked STATUSTEXT event recorded
         self.on_message: Callable | None = None  # optional hook(msg) for accepted messages
 
     # ---------------------------------------------------------------- receiving
@@ -942,6 +948,30 @@ class MavLink:
                                                       int(array_id) % 65536, values)
         self.tlog.write(bytes(msg.pack(self._recorder)))
         self._recorder.seq = (self._recorder.seq + 1) % 256
+
+    def record_event(self, text: str, severity: int = MAV_SEVERITY_INFO) -> None:
+        """Write one of the companion's own events to the tlog as STATUSTEXT (never sent).
+
+        From the companion's system and component, so ``companion log summary`` can list the
+        companion's decisions (holds, overrides, arming refusals, failsafes) beside the
+        autopilot's. A text longer than a STATUSTEXT's 50 characters is split into chunks with
+        one nonzero ``id`` and ``chunk_seq`` 0, 1, ... (MAVLink 2); a chunk shorter than 50
+        characters (an empty one if need be) ends it.
+        """
+        if self.tlog is None:
+            return
+        data = text.encode("utf-8")
+        chunks = [data[i:i + STATUSTEXT_CHARS] for i in range(0, len(data), STATUSTEXT_CHARS)] or [b""]
+        event_id = 0
+        if len(chunks) > 1:
+            if len(chunks[-1]) == STATUSTEXT_CHARS:
+                chunks.append(b"")
+            self._event_id = self._event_id % 65535 + 1
+            event_id = self._event_id
+        for seq, chunk in enumerate(chunks[:256]):
+            msg = self._recorder.statustext_encode(int(severity), chunk, event_id, seq)
+            self.tlog.write(bytes(msg.pack(self._recorder)))
+            self._recorder.seq = (self._recorder.seq + 1) % 256
 
     def counters(self) -> dict:
         return {"received": self.received, "sent": self.sent, "autopilot_restarts": self.restarts,
