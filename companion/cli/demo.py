@@ -7,7 +7,6 @@ the metrics table, the loop statistics, the tlog path and writes a PNG plot.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import socket
@@ -19,11 +18,9 @@ from pathlib import Path
 
 from companion.cli.fly import (
     add_flight_options,
-    format_loop_line,
-    format_metrics_table,
     health_options_from_args,
-    json_safe,
     options_from_args,
+    print_flight_summary,
 )
 from companion.errors import CompanionError, LinkError
 
@@ -173,10 +170,10 @@ def run(args) -> int:
     status.event(f"mock autopilot started ({args.autopilot} {args.vehicle}, speedup {args.speedup:g}) "
                  f"on udp port {port}")
     runner = FlightRunner(mission, options, status)
-    error: CompanionError | None = None
+    error: BaseException | None = None
     try:
         summary = runner.run()
-    except CompanionError as err:
+    except (CompanionError, KeyboardInterrupt) as err:  # print the figures so far, then report
         error = err
         summary = runner.summary
     finally:
@@ -197,17 +194,8 @@ def run(args) -> int:
         summary["plot_error"] = str(plot_error)
     summary["wall_s"] = wall_s
     summary["speedup"] = args.speedup
-    if args.json:
-        if error is not None:
-            summary["error"] = str(error)
-        print(json.dumps(json_safe(summary), indent=2))
-    else:
-        print(format_metrics_table(summary))
-        print(format_loop_line(summary))
-        print(f"tlog: {summary.get('tlog')}")
-        if plot_path:
-            print(f"plot: {plot_path}")
-        print(f"wall time: {wall_s:.1f} s")
+    print_flight_summary(summary, args.json, error,
+                         extra_lines=((f"plot: {plot_path}",) if plot_path else ()) + (f"wall time: {wall_s:.1f} s",))
     if error is not None:
         raise error
     if plot_error is not None:

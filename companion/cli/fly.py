@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 
 from companion.errors import CompanionError
 
@@ -182,22 +183,35 @@ def run(args) -> int:
     health_options_from_args(args)  # bad thresholds: one line, exit 2, before anything opens
     options = options_from_args(args, mission)
     runner = FlightRunner(mission, options, Status(quiet=args.quiet))
-    error: CompanionError | None = None
+    error: BaseException | None = None
     try:
         summary = runner.run()
-    except CompanionError as err:
+    except (CompanionError, KeyboardInterrupt) as err:
+        # The runner has closed the tlog and summarised the flight so far: print it, then let
+        # the error (or Ctrl-C, exit 130) go on to the one place that reports it.
         error = err
         summary = runner.summary
-    if args.json:
+    print_flight_summary(summary, args.json, error)
+    if error is not None:
+        raise error
+    return 0
+
+
+def print_flight_summary(summary: dict, as_json: bool, error: BaseException | None = None,
+                         extra_lines: tuple[str, ...] = ()) -> None:
+    """The end of a flight on stdout, also after a failure or Ctrl-C: the metrics so far."""
+    if as_json:
         out = dict(summary)
-        out["plot"] = None
-        if error is not None:
+        out.setdefault("plot", None)
+        if isinstance(error, KeyboardInterrupt):
+            out["error"] = "interrupted (Ctrl-C)"
+        elif error is not None:
             out["error"] = str(error)
         print(json.dumps(json_safe(out), indent=2))
     elif summary.get("ticks"):
         print(format_metrics_table(summary))
         print(format_loop_line(summary))
         print(f"tlog: {summary.get('tlog')}")
-    if error is not None:
-        raise error
-    return 0
+        for line in extra_lines:
+            print(line)
+    sys.stdout.flush()

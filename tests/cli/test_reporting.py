@@ -149,3 +149,29 @@ def test_long_sim_shows_progress_on_a_terminal(monkeypatch, capsys):
 def test_sim_on_a_pipe_shows_no_progress(capsys):
     assert main(["sim", str(MISSIONS / "paper_sine.yaml"), "--t-max-s", "3"]) == 0
     assert capsys.readouterr().err == ""
+
+
+class _InterruptedRunner(_FakeRunner):
+    """A flight stopped by Ctrl-C: the runner summarises the flight so far, then re-raises."""
+
+    def run(self):
+        raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize("command", ["fly", "demo"])
+def test_ctrl_c_prints_the_metrics_so_far_then_exits_130(monkeypatch, tmp_path, capsys, command):
+    import companion.cli.demo as demo
+    import companion.loop.runner as runner
+
+    monkeypatch.setattr(runner, "FlightRunner", _InterruptedRunner)
+    monkeypatch.setattr(demo, "MockProcess", _FakeMock)
+    argv = {"fly": ["fly", str(MISSIONS / "racetrack.yaml"), "--connect", "udpin:127.0.0.1:9"],
+            "demo": ["demo", "--no-plot"]}[command]
+    assert main(argv + ["--tlog", str(tmp_path / "i.tlog"), "--quiet"]) == 130
+    out, err = capsys.readouterr()
+    assert table_rows(out.split("\nloop:")[0]) == ["overall", "close_range"]
+    assert f"tlog: {tmp_path / 'i.tlog'}" in out
+    assert err.strip() == "companion: interrupted"
+    assert main(argv + ["--tlog", str(tmp_path / "j.tlog"), "--quiet", "--json"]) == 130
+    out = json.loads(capsys.readouterr().out)
+    assert out["error"] == "interrupted (Ctrl-C)" and out["samples"] == 2
