@@ -22,6 +22,14 @@ Checks (defaults in :class:`HealthOptions`; the operator's view and exit codes i
   sends holds, the vehicle stops where it is); still beyond it ``xtrack_hold_s`` later -> ``stop``.
   Back within the bound during the hold -> the flight resumes. In the mid-course phase the bound
   is widened by ``turn_allowance_m`` (a plane turning round towards the path first moves away).
+Feeding it (the flight loop, once per guidance tick, after ``compute_tick``)::
+
+    verdict = monitor.update(sample_from_tick(result, t_s, link.state.autopilot_time_s))
+    if verdict.changed and verdict.level != "ok":
+        status.event(verdict.reason); link.record_event(verdict.reason, severity)
+    if verdict.level == "hold": send a hold setpoint instead of result.setpoint
+    if verdict.level == "stop": send a hold, ask for the autopilot's hold mode, raise verdict.error()
+
 * **clock mismatch** (``--clock-tolerance``, 0.25): the autopilot's ``time_boot_ms`` advanced
   at a rate outside ``1 +- clock_tolerance`` of the loop's clock over the last
   ``clock_window_s`` (2 s). A simulator running 5x real time with ``--clock wall`` -> ``warn`` at
@@ -142,6 +150,30 @@ class HealthVerdict:
 
 
 _OK = HealthVerdict()
+
+
+def sample_from_tick(result, t_s: float, autopilot_time_s: float = math.nan) -> HealthSample:
+    """The health sample of one :class:`companion.loop.tick.TickResult` (what the loop feeds).
+
+    Position from the tick's vehicle state (ENU), else from its LOCAL_POSITION_NED sample; ground
+    speed from the sample's velocity; ``s`` and cross-track error from the guidance output (NaN
+    on a hold); ``hold`` from the tick; ``t_s`` the loop's clock at the tick and
+    ``autopilot_time_s`` the newest autopilot time the link holds.
+    """
+    state, out, pos = result.state, result.output, result.sample
+    if state is not None:
+        x, y = state.x_m, state.y_m
+    elif pos is not None:
+        x, y = pos.y_ned_m, pos.x_ned_m  # ENU east = NED y, north = NED x
+    else:
+        x = y = math.nan
+    speed = math.hypot(pos.vx_ned_m_s, pos.vy_ned_m_s) if pos is not None else math.nan
+    return HealthSample(
+        t_s=t_s, x_enu_m=x, y_enu_m=y,
+        s_m=out.s_proj_m if out is not None else math.nan,
+        crosstrack_m=out.crosstrack_m if out is not None else math.nan,
+        autopilot_time_s=autopilot_time_s, ground_speed_m_s=speed,
+        phase=result.phase, hold=result.is_hold)
 
 
 class HealthMonitor:

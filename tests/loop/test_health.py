@@ -313,3 +313,27 @@ def test_demo_help_names_the_demo_log():
     fly_help = sub["fly"].format_help()
     assert "logs/demo-<UTC time>.tlog" in " ".join(demo_help.split())
     assert "logs/flight-<UTC time>.tlog" in " ".join(fly_help.split())
+
+
+# ------------------------------------------------------------------ fed from the loop's tick
+
+
+def test_sample_from_a_tick_takes_enu_position_speed_and_the_guidance_figures():
+    from companion.guidance.types import GuidanceOutput
+    from companion.io.state import PositionSample
+    from companion.loop.health import sample_from_tick
+    from companion.loop.tick import TickConfig, compute_tick
+
+    class Straight:
+        def step(self, t_s, state):
+            return GuidanceOutput(a_cmd_m_s2=0.0, phase="close_range", crosstrack_m=-1.5, s_proj_m=42.0)
+
+    cfg = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0, stale_s=0.3)
+    pos = PositionSample(2000, 4.0, 3.0, -10.0, 3.0, 4.0, 0.0, received_s=0.0)  # NED: north 4, east 3
+    fresh = sample_from_tick(compute_tick(Straight(), 0, 1.0, pos, 0.01, cfg), 7.0, 2.0)
+    assert (fresh.x_enu_m, fresh.y_enu_m, fresh.s_m, fresh.crosstrack_m) == (3.0, 4.0, 42.0, -1.5)
+    assert (fresh.t_s, fresh.autopilot_time_s, fresh.ground_speed_m_s) == (7.0, 2.0, 5.0)  # 3-4-5
+    assert not fresh.hold and fresh.phase == "close_range"
+    stale = sample_from_tick(compute_tick(Straight(), 1, 1.0, pos, 0.5, cfg), 7.5)
+    assert stale.hold and math.isnan(stale.s_m) and math.isnan(stale.crosstrack_m)
+    assert (stale.x_enu_m, stale.y_enu_m) == (3.0, 4.0)
