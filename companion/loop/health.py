@@ -21,7 +21,9 @@ Checks (defaults in :class:`HealthOptions`; the operator's view and exit codes i
   approach from far is not a failure). Half the bound -> ``warn``; the bound -> ``hold`` (the loop
   sends holds, the vehicle stops where it is); still beyond it ``xtrack_hold_s`` later -> ``stop``.
   Back within the bound during the hold -> the flight resumes. In the mid-course phase the bound
-  is widened by ``turn_allowance_m`` (a plane turning round towards the path first moves away).
+  is widened by one circle's diameter (:func:`midcourse_allowance_m`): the vehicle swings round an
+  initiation circle onto the path start, and a plane turning round towards the path first moves
+  away from it.
 Feeding it (the flight loop, once per guidance tick, after ``compute_tick``)::
 
     verdict = monitor.update(sample_from_tick(result, t_s, link.state.autopilot_time_s))
@@ -152,6 +154,20 @@ class HealthVerdict:
 _OK = HealthVerdict()
 
 
+def midcourse_allowance_m(circle_radius_m: float, speed_m_s: float,
+                          lat_accel_max_m_s2: float = math.inf) -> float:
+    """Cross-track growth expected in the mid-course phase: the diameter of the larger of the
+    initiation circle and the vehicle's tightest turn, ``2 max(R, v^2 / a_max)``.
+
+    >>> midcourse_allowance_m(10.0, 5.0)  # a copter on the paper's 10 m circle
+    20.0
+    >>> round(midcourse_allowance_m(10.0, 18.0, 9.80665 * math.tan(math.radians(35.0))), 1)
+    94.4
+    """
+    turn_m = speed_m_s ** 2 / lat_accel_max_m_s2 if lat_accel_max_m_s2 > 0 else math.inf
+    return 2.0 * max(float(circle_radius_m), turn_m)
+
+
 def sample_from_tick(result, t_s: float, autopilot_time_s: float = math.nan) -> HealthSample:
     """The health sample of one :class:`companion.loop.tick.TickResult` (what the loop feeds).
 
@@ -184,18 +200,19 @@ class HealthMonitor:
     options : thresholds.
     speed_m_s : the mission speed (sets the progress expected).
     clock : ``"wall"`` or ``"autopilot"`` (the loop's clock; ``autopilot`` turns the clock check off).
-    turn_allowance_m : extra cross-track growth accepted in the mid-course phase (a turn-round
-        towards the path); the flight loop passes ``2 v^2 / a_max`` for a plane, 0 otherwise.
+    midcourse_allowance_m : extra cross-track growth accepted in the mid-course phase, where the
+        vehicle swings round an initiation circle onto the path start; the flight loop passes
+        :func:`midcourse_allowance_m` of the mission.
     """
 
     def __init__(self, options: HealthOptions, speed_m_s: float, *, clock: str = "wall",
-                 turn_allowance_m: float = 0.0):
+                 midcourse_allowance_m: float = 0.0):
         if not (math.isfinite(speed_m_s) and speed_m_s > 0):
             raise ValueError(f"speed_m_s: expected a number > 0, got {speed_m_s!r}")
         self.opt = options
         self.speed_m_s = float(speed_m_s)
         self.clock = clock
-        self.turn_allowance_m = float(turn_allowance_m)
+        self.midcourse_allowance_m = float(midcourse_allowance_m)
         self._track: deque = deque()  # (t_s, x, y, s) of non-hold ticks since the last reset
         self._clock_track: deque = deque()  # (t_s, autopilot_time_s)
         self._best_xtrack_m = math.inf
@@ -254,7 +271,7 @@ class HealthMonitor:
             return _OK
         d = abs(s.crosstrack_m)
         self._best_xtrack_m = min(self._best_xtrack_m, d)
-        allowed = bound + (self.turn_allowance_m if s.phase == "midcourse" else 0.0)
+        allowed = bound + (self.midcourse_allowance_m if s.phase == "midcourse" else 0.0)
         excess = d - self._best_xtrack_m
         if excess <= allowed:
             self._xtrack_since_s = None
