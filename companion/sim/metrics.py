@@ -19,11 +19,6 @@ from typing import Sequence
 
 import numpy as np
 
-#: The phase of the tick that reports the end of the path (the flight loop records it, the
-#: simulator stops before it): a marker, not a phase, so it is left out of every figure and a
-#: flown or replayed flight has the phases of its simulation.
-END_MARKER_PHASE = "finished"
-
 #: The row name of the whole-flight figures in every metrics table (sim, fly, demo, replay).
 OVERALL_ROW = "overall"
 
@@ -56,8 +51,7 @@ def tracking_metrics(
     Parameters
     ----------
     t_s, crosstrack_m, a_cmd_m_s2 : sequences of equal length, one entry per guidance tick.
-    phase : optional phase name per tick (e.g. ``"midcourse"``, ``"close_range"``); ticks of
-        the end marker ``"finished"`` are left out of every figure.
+    phase : optional phase name per tick (e.g. ``"midcourse"``, ``"close_range"``).
 
     Returns
     -------
@@ -69,26 +63,18 @@ def tracking_metrics(
     >>> m = tracking_metrics([0.0, 1.0], [3.0, 4.0], [0.0, 2.0], ["close_range"] * 2)
     >>> round(m["d_rms_m"], 6), m["a_max_m_s2"], m["duration_s"]
     (3.535534, 2.0, 1.0)
-    >>> m = tracking_metrics([0.0, 1.0, 1.02], [3.0, 4.0, 9.0], [0.0, 2.0, 0.0],
-    ...                      ["close_range", "close_range", "finished"])
-    >>> list(m["phases"]), m["samples"], m["d_max_m"]
-    (['close_range'], 2, 4.0)
     """
     t = np.asarray(t_s, dtype=float)
     d = np.asarray(crosstrack_m, dtype=float)
     a = np.asarray(a_cmd_m_s2, dtype=float)
     if not (t.shape == d.shape == a.shape):
         raise ValueError(f"series lengths differ: t {t.shape}, d {d.shape}, a {a.shape}")
+    out = _summary(t, d, a)
     phases: dict[str, dict] = {}
-    names = None
     if phase is not None:
         names = np.asarray(list(phase), dtype=object)
         if names.shape != t.shape:
             raise ValueError(f"phase length {names.shape} differs from t {t.shape}")
-        flying = names != END_MARKER_PHASE
-        t, d, a, names = t[flying], d[flying], a[flying], names[flying]
-    out = _summary(t, d, a)
-    if names is not None:
         for name in dict.fromkeys(names.tolist()):
             mask = names == name
             phases[str(name)] = _summary(t[mask], d[mask], a[mask])

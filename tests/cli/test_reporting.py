@@ -49,16 +49,6 @@ def _sim_json(capsys):
     return capsys.readouterr().out
 
 
-def test_the_end_of_path_tick_is_not_a_phase():
-    # The flight loop records the tick that reports the end of the path; the simulator stops
-    # before it. It must not add a zero-length "finished" phase nor count in the figures.
-    m = tracking_metrics([0.0, 0.02, 0.04], [3.0, 4.0, 50.0], [1.0, 1.0, 9.0],
-                         ["close_range", "close_range", "finished"])
-    assert list(m["phases"]) == ["close_range"]
-    assert (m["samples"], m["d_max_m"], m["a_max_m_s2"]) == (2, 4.0, 1.0)
-    assert m["d_rms_m"] == pytest.approx((12.5) ** 0.5)  # sqrt((9 + 16) / 2)
-
-
 def test_sim_plot_on_a_core_install_prints_the_figures_then_one_line(no_matplotlib, tmp_path, capsys):
     png = tmp_path / "x.png"
     code = main(["sim", str(MISSIONS / "paper_sine.yaml"), "--t-max-s", "3", "--plot", str(png)])
