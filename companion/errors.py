@@ -31,3 +31,9 @@ class FlightAborted(CompanionError):
     """A flight stopped early for a reason the user must see (pilot override, failsafe)."""
 
     exit_code = 1
+
+
+class FlightUnhealthy(FlightAborted):
+    """A flight-health failsafe stopped the flight (no progress, runaway): see docs/failsafes.md."""
+
+    exit_code = 3

@@ -32,7 +32,8 @@ def pyplot():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise CompanionError("plots need matplotlib: pip install 'companion[plot]'") from None
+        raise CompanionError("no plot written: plots need matplotlib, the 'plot' extra "
+                             "(pip install 'companion[plot]')") from None
     return plt
 
 

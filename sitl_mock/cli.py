@@ -33,18 +33,20 @@ def build_parser() -> argparse.ArgumentParser:
         prog="sitl-mock",
         description="Mock PX4/ArduPilot autopilot speaking MAVLink 2 over UDP, with a point-mass vehicle.")
     add = parser.add_argument
-    add("--autopilot", choices=("px4", "ardupilot"), default="px4")
-    add("--vehicle", choices=("copter", "plane", "rover"), default="copter")
+    add("--autopilot", choices=("px4", "ardupilot"), default="px4",
+        help="personality: modes, arming and failsafes of PX4 or ArduPilot (default px4)")
+    add("--vehicle", choices=("copter", "plane", "rover"), default="copter",
+        help="vehicle type in the heartbeat and its point-mass model (default copter)")
     add("--link", action="append", default=[], metavar="udpout:HOST:PORT|udpin:HOST:PORT",
         help="link string; repeat for several links (default udpout:127.0.0.1:14540)")
-    add("--sysid", type=int, default=1)
-    add("--compid", type=int, default=1)
-    add("--speedup", type=float, default=1.0, help="simulated seconds per wall-clock second")
-    add("--physics-hz", type=float, default=400.0)
+    add("--sysid", type=int, default=1, help="MAVLink system id of the autopilot (default 1)")
+    add("--compid", type=int, default=1, help="MAVLink component id of the autopilot (default 1)")
+    add("--speedup", type=float, default=1.0, help="simulated seconds per wall-clock second (default 1)")
+    add("--physics-hz", type=float, default=400.0, help="vehicle model integration rate (default 400)")
     add("--seed", type=int, default=0, help="seed of the position noise")
     add("--start-ned", default="0,0", metavar="N,E", help="start position north,east (m) from the origin")
     add("--start-alt-m", type=float, default=0.0, help="start height above ground (m)")
-    add("--start-yaw-deg", type=float, default=0.0)
+    add("--start-yaw-deg", type=float, default=0.0, help="start yaw, degrees clockwise from north (default 0)")
     add("--start-airborne", action="store_true", help="start armed, flying, in the hold mode")
     add("--origin", default=None, metavar="LAT,LON,ALT", help="geodetic origin of the local frame")
     add("--no-ekf-origin", action="store_true",
@@ -52,20 +54,25 @@ def build_parser() -> argparse.ArgumentParser:
     add("--pace-lead-s", type=float, default=None, metavar="S",
         help="hold simulated time while the setpoint client's newest time_boot_ms lags by more than S "
              "(faster-than-real-time runs on a busy machine; off by default)")
-    add("--tau-vel-s", type=float, default=0.3)
-    add("--tau-yaw-rate-s", type=float, default=0.3)
+    add("--tau-vel-s", type=float, default=0.3,
+        help="velocity response time constant, s (copter, rover; plane climb rate) (default 0.3)")
+    add("--tau-yaw-rate-s", type=float, default=0.3,
+        help="yaw-rate response time constant, s (copter, rover) (default 0.3)")
     add("--tau-roll-s", type=float, default=0.5, help="plane roll time constant")
     add("--a-max-m-s2", type=float, default=None, help="acceleration limit (default copter 5, rover 3, plane 5)")
     add("--yaw-rate-max-deg-s", type=float, default=None, help="yaw-rate limit (default copter 90, rover 120)")
     add("--roll-max-deg", type=float, default=45.0, help="plane bank-angle limit")
     add("--airspeed-m-s", type=float, default=15.0, help="plane cruise airspeed")
-    add("--airspeed-min-m-s", type=float, default=10.0)
-    add("--wind-ned-m-s", default="0,0", metavar="N,E")
-    add("--pos-noise-m", type=float, default=0.0)
+    add("--airspeed-min-m-s", type=float, default=10.0,
+        help="plane minimum airspeed, the floor of DO_CHANGE_SPEED (default 10)")
+    add("--wind-ned-m-s", default="0,0", metavar="N,E",
+        help="steady wind north,east (m/s) the plane drifts with (default 0,0)")
+    add("--pos-noise-m", type=float, default=0.0,
+        help="standard deviation of the noise on each reported position axis, m (default 0)")
     add("--offboard-loss-s", type=float, default=0.5, help="PX4 COM_OF_LOSS_T")
     add("--guided-timeout-s", type=float, default=3.0, help="ArduPilot GUID_TIMEOUT")
     add("--signing-key-file", default=None, metavar="F", help="64 hex characters, or a passphrase")
-    add("--tlog", default=None, metavar="FILE")
+    add("--tlog", default=None, metavar="FILE", help="record both directions of every link to this tlog")
     add("--duration-s", type=float, default=None, help="stop after this much simulated time")
     add("--quiet", action="store_true", help="no event log on stderr (the ready and summary lines stay)")
     return parser

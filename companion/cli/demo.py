@@ -7,12 +7,17 @@ the metrics table, the loop statistics, the tlog path and writes a PNG plot.
 
 from __future__ import annotations
 
-import json
 import math
+import sys
 import time
 from pathlib import Path
 
-from companion.cli.fly import add_flight_options, format_loop_line, format_metrics_table, json_safe, options_from_args
+from companion.cli.fly import (
+    add_flight_options,
+    health_options_from_args,
+    options_from_args,
+    print_flight_summary,
+)
 from companion.errors import CompanionError
 from companion.io.mock_process import MockProcess, free_udp_port, mock_start_args
 
@@ -33,7 +38,7 @@ def register(subparsers) -> None:
     p.add_argument("--plot", default=None, help="PNG path (default: beside the tlog)")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG")
     p.add_argument("--seed", type=int, default=1)
-    add_flight_options(p, connect_required=False)
+    add_flight_options(p, connect_required=False, tlog_prefix="demo")
     # The demo ticks on the autopilot's clock unless told otherwise (parser defaults win).
     p.set_defaults(func=run, clock="autopilot")
 
@@ -85,6 +90,7 @@ def run(args) -> int:
     from companion.mission import load_mission
 
     mission = load_mission(find_mission(args.mission))
+    health_options_from_args(args)  # bad thresholds: one line, exit 2, before the mock starts
     if not args.tlog:
         p = default_tlog_path()
         args.tlog = str(p.with_name(p.name.replace("flight-", "demo-")))
@@ -102,35 +108,36 @@ def run(args) -> int:
     status.event(f"mock autopilot started ({args.autopilot} {args.vehicle}, speedup {args.speedup:g}) "
                  f"on udp port {port}")
     runner = FlightRunner(mission, options, status)
-    error: CompanionError | None = None
+    error: BaseException | None = None
     try:
         summary = runner.run()
-    except CompanionError as err:
+    except (CompanionError, KeyboardInterrupt) as err:  # print the figures so far, then report
         error = err
         summary = runner.summary
     finally:
         mock.stop()
     wall_s = time.monotonic() - wall0
     plot_path = None
+    plot_error: CompanionError | None = None
     if not args.no_plot and runner.record.t_s:
         plot_path = Path(args.plot) if args.plot else Path(str(runner.tlog_path) + ".png")
         title = f"{mission.name}: {args.autopilot} {args.vehicle} mock, x{args.speedup:g}"
-        write_plot(plot_path, mission, runner.record, title)
+        try:
+            write_plot(plot_path, mission, runner.record, title)
+        except CompanionError as err:  # a core install without matplotlib: keep the figures
+            plot_error, plot_path = err, None
     summary = dict(summary)
     summary["plot"] = str(plot_path) if plot_path else None
+    if plot_error is not None:
+        summary["plot_error"] = str(plot_error)
     summary["wall_s"] = wall_s
     summary["speedup"] = args.speedup
-    if args.json:
-        if error is not None:
-            summary["error"] = str(error)
-        print(json.dumps(json_safe(summary), indent=2))
-    else:
-        print(format_metrics_table(summary))
-        print(format_loop_line(summary))
-        print(f"tlog: {summary.get('tlog')}")
-        if plot_path:
-            print(f"plot: {plot_path}")
-        print(f"wall time: {wall_s:.1f} s")
+    print_flight_summary(summary, args.json, error,
+                         extra_lines=((f"plot: {plot_path}",) if plot_path else ()) + (f"wall time: {wall_s:.1f} s",))
     if error is not None:
         raise error
+    if plot_error is not None:
+        if args.plot:  # asked for by name: the command did not do what it was told
+            raise plot_error
+        print(f"companion: {plot_error} (or pass --no-plot)", file=sys.stderr)
     return 0

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 
 from companion.errors import CompanionError
 from companion.loop.tick import DEFAULT_STALE_S
 
 
-def add_flight_options(parser, *, connect_required: bool = True) -> None:
-    """Options shared by ``fly`` and ``demo`` (the demo fills in the connection itself)."""
+def add_flight_options(parser, *, connect_required: bool = True, tlog_prefix: str = "flight") -> None:
+    """Options shared by ``fly`` and ``demo`` (the demo fills in the connection itself).
+
+    ``tlog_prefix`` is the default log's file name prefix (``logs/<prefix>-<UTC time>.tlog``).
+    """
     if connect_required:
         parser.add_argument("--connect", required=True, metavar="LINK",
-                            help="udpin:0.0.0.0:14540 (PX4 SITL), tcp:127.0.0.1:5760 (ArduPilot SITL), "
+                            help="udpin:0.0.0.0:14540 or udp:0.0.0.0:14540 (listen: PX4 SITL), tcp:127.0.0.1:5760 (ArduPilot SITL), "
                                  "udpout:HOST:PORT, or /dev/ttyACM0,921600")
         parser.add_argument("--autopilot", choices=("auto", "px4", "ardupilot"), default="auto",
                             help="expected autopilot (default: detect from its heartbeat)")
@@ -33,12 +37,46 @@ def add_flight_options(parser, *, connect_required: bool = True) -> None:
     parser.add_argument("--output", choices=("auto", "velocity", "attitude"), default="auto",
                         help="setpoint type: velocity + yaw rate (copter, rover) or attitude (plane)")
     parser.add_argument("--max-bank-deg", type=float, default=35.0, help="fixed-wing bank limit (default 35)")
-    parser.add_argument("--tlog", default=None, help="flight log path (default logs/flight-<UTC time>.tlog)")
+    parser.add_argument("--tlog", default=None, help=f"flight log path (default logs/{tlog_prefix}-<UTC time>.tlog)")
     parser.add_argument("--signing-key-file", default=None,
                         help="MAVLink 2 signing key: 64 hex characters or a passphrase (SHA-256)")
     parser.add_argument("--max-duration-s", type=float, default=None, help="stop after this flight time")
+    add_health_options(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON summary object on stdout")
     parser.add_argument("--quiet", action="store_true", help="no status lines")
+
+
+def add_health_options(parser) -> None:
+    """The flight-health failsafes' flags (companion.loop.health; 0 turns a check off)."""
+    from companion.loop.health import HealthOptions
+
+    d = HealthOptions()
+    g = parser.add_argument_group("flight-health failsafes (docs/failsafes.md; 0 turns a check off)")
+    g.add_argument("--no-progress-s", type=float, default=d.no_progress_s,
+                   help="stop (exit 3) if the vehicle covers less than a fifth of the mission speed's "
+                        f"distance in this long: not moving, on the ground (default {d.no_progress_s:g})")
+    g.add_argument("--max-xtrack-m", type=float, default=d.max_xtrack_m,
+                   help="hold if the distance to the path grows this much beyond its closest approach "
+                        f"(default {d.max_xtrack_m:g})")
+    g.add_argument("--xtrack-hold-s", type=float, default=d.xtrack_hold_s,
+                   help="stop (exit 3) if still beyond --max-xtrack-m after holding this long "
+                        f"(default {d.xtrack_hold_s:g})")
+    g.add_argument("--clock-tolerance", type=float, default=d.clock_tolerance,
+                   help="warn if the autopilot's time runs faster or slower than the loop's clock by "
+                        f"more than this fraction: use --clock autopilot (default {d.clock_tolerance:g})")
+
+
+def health_options_from_args(args):
+    """The :class:`~companion.loop.health.HealthOptions` of the parsed flags (validated)."""
+    from companion.loop.health import HealthOptions
+
+    d = HealthOptions()
+    return HealthOptions(
+        no_progress_s=getattr(args, "no_progress_s", d.no_progress_s),
+        max_xtrack_m=getattr(args, "max_xtrack_m", d.max_xtrack_m),
+        xtrack_hold_s=getattr(args, "xtrack_hold_s", d.xtrack_hold_s),
+        clock_tolerance=getattr(args, "clock_tolerance", d.clock_tolerance),
+    )
 
 
 def register(subparsers) -> None:
@@ -110,8 +148,10 @@ def json_safe(obj):
 
 
 def format_metrics_table(summary: dict) -> str:
-    """The per-phase metrics table printed at the end of a flight."""
-    rows = [("all", summary)] + list(summary.get("phases", {}).items())
+    """The per-phase metrics table of sim, fly and demo: ``overall``, then one row per phase."""
+    from companion.sim.metrics import OVERALL_ROW
+
+    rows = [(OVERALL_ROW, summary)] + list(summary.get("phases", {}).items())
     lines = [f"{'phase':<12} {'d_rms_m':>9} {'d_max_m':>9} {'a_rms_m_s2':>11} {'a_max_m_s2':>11} "
              f"{'duration_s':>11}"]
     for name, m in rows:
@@ -142,24 +182,38 @@ def run(args) -> int:
     from companion.mission import load_mission
 
     mission = load_mission(args.mission)
+    health_options_from_args(args)  # bad thresholds: one line, exit 2, before anything opens
     options = options_from_args(args, mission)
     runner = FlightRunner(mission, options, Status(quiet=args.quiet))
-    error: CompanionError | None = None
+    error: BaseException | None = None
     try:
         summary = runner.run()
-    except CompanionError as err:
+    except (CompanionError, KeyboardInterrupt) as err:
+        # The runner has closed the tlog and summarised the flight so far: print it, then let
+        # the error (or Ctrl-C, exit 130) go on to the one place that reports it.
         error = err
         summary = runner.summary
-    if args.json:
+    print_flight_summary(summary, args.json, error)
+    if error is not None:
+        raise error
+    return 0
+
+
+def print_flight_summary(summary: dict, as_json: bool, error: BaseException | None = None,
+                         extra_lines: tuple[str, ...] = ()) -> None:
+    """The end of a flight on stdout, also after a failure or Ctrl-C: the metrics so far."""
+    if as_json:
         out = dict(summary)
-        out["plot"] = None
-        if error is not None:
+        out.setdefault("plot", None)
+        if isinstance(error, KeyboardInterrupt):
+            out["error"] = "interrupted (Ctrl-C)"
+        elif error is not None:
             out["error"] = str(error)
         print(json.dumps(json_safe(out), indent=2))
     elif summary.get("ticks"):
         print(format_metrics_table(summary))
         print(format_loop_line(summary))
         print(f"tlog: {summary.get('tlog')}")
-    if error is not None:
-        raise error
-    return 0
+        for line in extra_lines:
+            print(line)
+    sys.stdout.flush()

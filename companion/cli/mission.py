@@ -34,7 +34,10 @@ def register(subparsers) -> None:
 
     imp = sub.add_parser("import", help="convert a QGroundControl .plan or QGC WPL 110 file")
     imp.add_argument("file", help="FILE.plan (JSON) or FILE.waypoints (QGC WPL 110)")
-    imp.add_argument("-o", "--output", required=True, help="mission YAML to write")
+    imp.add_argument("-o", "--output", required=True,
+                     help="mission YAML to write ('-': standard output); an existing file is kept "
+                          "unless --force")
+    imp.add_argument("--force", action="store_true", help="overwrite the --output file if it exists")
     imp.add_argument("--name", help="mission name (default: the file's stem)")
     imp.add_argument("--speed-m-s", type=float, help="ground speed (default: from the plan)")
     imp.add_argument("--altitude-m", type=float,
@@ -88,17 +91,31 @@ def run_import(args) -> int:
         value = getattr(args, name)
         if value is not None and not (math.isfinite(value) and value > 0):
             raise MissionError(f"--{name.replace('_', '-')}: expected a finite number > 0, got {value!r}")
+    refusal = (f"{args.output}: already exists; not overwritten (pass --force to replace it, "
+               "or -o - to print)")
+    if args.output != "-" and not args.force and FilePath(args.output).exists():
+        raise CompanionError(refusal)  # before reading the plan: one line, nothing else
     result = import_file(args.file, name=args.name, speed_m_s=args.speed_m_s,
                          altitude_m=args.altitude_m)
     for note in result.notes:
         print(note, file=sys.stderr)
+    what = (f"{len(result.points_enu_m)} waypoints about origin "
+            f"{result.origin[0]:.7f}, {result.origin[1]:.7f}")
+    if args.output == "-":  # the YAML alone on stdout (for a pipe); the note on stderr
+        sys.stdout.write(result.yaml_text)
+        sys.stdout.flush()
+        print(f"<stdout>: wrote {what}", file=sys.stderr)
+        return 0
     out = FilePath(args.output)
     try:
-        out.write_text(result.yaml_text)
+        # "x": refuse an existing file in the same system call that creates the new one.
+        with open(out, "w" if args.force else "x", encoding="utf-8") as f:
+            f.write(result.yaml_text)
+    except FileExistsError:
+        raise CompanionError(refusal) from None
     except OSError as err:
         raise CompanionError(f"{out}: cannot write ({err.strerror})") from None
-    print(f"{out}: wrote {len(result.points_enu_m)} waypoints about origin "
-          f"{result.origin[0]:.7f}, {result.origin[1]:.7f}")
+    print(f"{out}: wrote {what}")
     return 0
 
 

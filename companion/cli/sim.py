@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 
+from companion.cli.fly import format_metrics_table
 from companion.errors import MissionError
 from companion.guidance.types import METHODS, VehicleState
 
@@ -73,8 +74,10 @@ def run(args) -> int:
     start = VehicleState(x0, y0, h0, mission.speed_m_s)
     law = TwoPhaseGuidance(path, params)
     profile = mission.profile if mission.profile is not None and not mission.profile.constant_speed else None
-    result = simulate(path, ProfiledGuidance(law, profile) if profile else law, start, params,
-                      t_max_s=args.t_max_s, profile=profile)
+    flown = ProfiledGuidance(law, profile) if profile else law
+    with SimProgress(_expected_s(path, start, args.t_max_s), f"sim {mission.name}") as progress:
+        result = simulate(path, _Reporting(flown, progress), start, params, t_max_s=args.t_max_s,
+                          profile=profile)
     metrics = result.metrics
     summary = {
         "mission": mission.name, "method": params.method,
@@ -89,10 +92,10 @@ def run(args) -> int:
         summary["midcourse"] = {"case": plan.case, "rule": plan.rule, "circle": plan.chosen.circle.name,
                                 "contact_xy_m": list(plan.chosen.contact_xy_m),
                                 "a_cmd_m_s2": plan.chosen.a_cmd_m_s2}
-    if args.plot:
-        _plot(args.plot, mission, path, result)
     if args.json:
         print(json.dumps(summary, indent=2))
+        if args.plot:
+            _plot(args.plot, mission, path, result)
         return 0
     if params.method == "predictive":  # chooses its own look-ahead: show its tuning instead of L1
         tuning = (f"lambda {params.lambda_s4:g} s^4, lag {params.rollout_tau_s:g} s, "
@@ -107,15 +110,56 @@ def run(args) -> int:
         c = plan.chosen
         print(f"mid-course: case {plan.case}, {c.circle.name} initiation circle, contact point "
               f"({c.contact_xy_m[0]:.2f}, {c.contact_xy_m[1]:.2f}) m, constant command {c.a_cmd_m_s2:.3f} m/s^2")
-    header = f"{'':14s}{'d_rms_m':>10s}{'d_max_m':>10s}{'a_rms_m_s2':>12s}{'a_max_m_s2':>12s}{'duration_s':>12s}"
-    print(header)
-    rows = [("overall", metrics)] + list(metrics["phases"].items())
-    for name, m in rows:
-        print(f"{name:14s}{m['d_rms_m']:10.3f}{m['d_max_m']:10.3f}{m['a_rms_m_s2']:12.3f}"
-              f"{m['a_max_m_s2']:12.3f}{m['duration_s']:12.2f}")
+    print(format_metrics_table(metrics))
     if args.plot:
+        _plot(args.plot, mission, path, result)
         print(f"plot written to {args.plot}")
     return 0
+
+
+class SimProgress:
+    """Progress of a simulation in simulated seconds: a tqdm bar on stderr (the ``progress``
+    extra), shown only on a terminal and only once the run has taken a second of wall time, so
+    a short run and a redirected output stay clean."""
+
+    def __init__(self, total_s: float, description: str, enabled: bool | None = None):
+        from companion.replay.progress import ByteProgress
+
+        self._bar = ByteProgress(total_s, description, enabled=enabled, unit="s")
+
+    def update_to(self, t_s: float) -> None:
+        self._bar.update_to(t_s)
+
+    def __enter__(self) -> "SimProgress":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._bar.__exit__(*exc)
+
+
+class _Reporting:
+    """The guidance law, reporting each step's simulated time to a progress bar."""
+
+    def __init__(self, law, progress: SimProgress):
+        self._law = law
+        self._progress = progress
+
+    def step(self, t_s, state):
+        self._progress.update_to(t_s)
+        return self._law.step(t_s, state)
+
+    def __getattr__(self, name):
+        return getattr(self._law, name)
+
+
+def _expected_s(path, start, t_max_s) -> float:
+    """The nominal flight time (reach the path start, then fly it), capped by the time limit."""
+    from companion.sim.simulator import default_t_max_s
+
+    sx, sy = path.start_xy_m
+    nominal_s = (path.length_m + math.hypot(start.x_m - sx, start.y_m - sy)) / start.speed_m_s
+    limit_s = t_max_s if t_max_s is not None else default_t_max_s(path, start)
+    return round(min(nominal_s, limit_s), 1)
 
 
 def _finite_or_none(value):
@@ -125,6 +169,8 @@ def _finite_or_none(value):
 
 
 def _plot(out_path: str, mission, path, result) -> None:
+    """Written after the figures are printed: without matplotlib (a core install) the figures
+    are on stdout and one line on stderr names the ``plot`` extra (exit code 2)."""
     from companion.plots import flight_figure, save_figure
 
     fig = flight_figure(path, result.t_s, result.x_m, result.y_m, result.crosstrack_m,

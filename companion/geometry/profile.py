@@ -37,9 +37,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.ndimage import maximum_filter1d
+
+#: A profile target: one number, or a function of the arc-length grid (numpy array) giving the
+#: target on it; None where the caller has none (one constant).
+ProfileTarget = Union[float, Callable[[np.ndarray], ArrayLike], None]
 
 #: Grid spacing of the profile tables (finer for short paths; at most MAX_SAMPLES nodes).
 GRID_M = 0.05
@@ -82,7 +88,8 @@ class PathProfile:
     constant_speed, constant_altitude : True when that table is one value.
     """
 
-    def __init__(self, s_m, alt_m, speed_m_s, closed: bool, limits: ProfileLimits):
+    def __init__(self, s_m: ArrayLike, alt_m: ArrayLike, speed_m_s: ArrayLike, closed: bool,
+                 limits: ProfileLimits) -> None:
         s = np.asarray(s_m, dtype=float)
         h = np.asarray(alt_m, dtype=float)
         v = np.asarray(speed_m_s, dtype=float)
@@ -107,7 +114,7 @@ class PathProfile:
         return (f"PathProfile({self.length_m:.1f} m, alt {float(self.alt_m.min()):g}..{float(self.alt_m.max()):g} m, "
                 f"speed {float(self.speed_m_s_table.min()):g}..{float(self.speed_m_s_table.max()):g} m/s)")
 
-    def _interp(self, table: list, s_m: float) -> float:
+    def _interp(self, table: list[float], s_m: float) -> float:
         if not math.isfinite(s_m):
             s_m = 0.0
         if self.closed:
@@ -117,7 +124,7 @@ class PathProfile:
         u = s_m / self._ds
         i = min(int(u), len(table) - 2)
         f = u - i
-        return table[i] + (table[i + 1] - table[i]) * f
+        return float(table[i] + (table[i + 1] - table[i]) * f)
 
     def altitude_m(self, s_m: float) -> float:
         """Height of the profile at arc length ``s_m`` (clamped to the ends; wrapped when closed)."""
@@ -137,15 +144,15 @@ class PathProfile:
 
     @property
     def start_altitude_m(self) -> float:
-        return self._h[0]
+        return float(self._h[0])
 
     @property
     def end_altitude_m(self) -> float:
-        return self._h[-1]
+        return float(self._h[-1])
 
     def climb_table_m_s(self) -> np.ndarray:
         """Climb rate at every node of the table."""
-        return self.speed_m_s_table * self.slope_table
+        return np.asarray(self.speed_m_s_table * self.slope_table, dtype=float)
 
 
 # ------------------------------------------------------------------------------ construction
@@ -155,7 +162,7 @@ def grid(length_m: float) -> np.ndarray:
     return np.linspace(0.0, length_m, n)
 
 
-def knots_table(s_grid: np.ndarray, knots_s_m, values, closed: bool, length_m: float,
+def knots_table(s_grid: np.ndarray, knots_s_m: ArrayLike, values: ArrayLike, closed: bool, length_m: float,
                 step: bool) -> np.ndarray:
     """Values at knots (arc lengths, increasing) on the grid: linear interpolation, or held
     from each knot to the next (``step``). Open paths hold the first and last values beyond the
@@ -171,7 +178,7 @@ def knots_table(s_grid: np.ndarray, knots_s_m, values, closed: bool, length_m: f
     if step:
         idx = np.searchsorted(ks, s_grid, side="right") - 1
         return kv[np.clip(idx, 0, kv.size - 1)]
-    return np.interp(s_grid, ks, kv)
+    return np.asarray(np.interp(s_grid, ks, kv), dtype=float)
 
 
 def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: float,
@@ -179,7 +186,7 @@ def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: floa
     """Rate-limit a target speed along the path: ``|d(V^2)/ds| <= 2 a`` (forward pass)."""
     target2 = np.asarray(target_m_s, dtype=float) ** 2
     if np.all(target2 == target2[0]):
-        return np.sqrt(target2)
+        return np.asarray(np.sqrt(target2), dtype=float)
     step = 2.0 * accel_max_m_s2 * (s_grid[1] - s_grid[0])
     laps = 2 if closed else 1
     out = target2.copy()
@@ -195,10 +202,10 @@ def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: floa
             prev = want
         out = np.asarray(o)
         v2 = out[-1]
-    return np.sqrt(out)
+    return np.asarray(np.sqrt(out), dtype=float)
 
 
-def _clip_pass(target: list, up: list, down: list, start: float) -> list:
+def _clip_pass(target: list[float], up: list[float], down: list[float], start: float) -> list[float]:
     out = [0.0] * len(target)
     h = start
     for i, want in enumerate(target):
@@ -221,7 +228,7 @@ def rate_limited(target_m: np.ndarray, up_m: np.ndarray, down_m: np.ndarray, clo
         fwd = np.asarray(_clip_pass(t.tolist(), up.tolist(), down.tolist(), float(t[0])))
         bwd = np.asarray(_clip_pass(t[::-1].tolist(), down[::-1].tolist(), up[::-1].tolist(),
                                     float(t[-1])))[::-1]
-    return 0.5 * (fwd + bwd)
+    return np.asarray(0.5 * (fwd + bwd), dtype=float)
 
 
 def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndarray:
@@ -229,7 +236,7 @@ def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndar
     open table, which keeps the end values; periodic when closed)."""
     v = np.asarray(values, dtype=float)
     if half_width <= 0:
-        return v.copy()
+        return np.asarray(v.copy(), dtype=float)
     if closed:
         core = v[:-1]  # the last node repeats the first
         reps = half_width // core.size + 1
@@ -265,7 +272,7 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
     """The flyable height table for ``target_m`` at speeds ``speed_m_s`` (module docstring)."""
     target = np.asarray(target_m, dtype=float)
     if np.all(target == target[0]):
-        return target.copy()
+        return np.asarray(target.copy(), dtype=float)
     ds = float(s_grid[1] - s_grid[0])
     v = np.asarray(speed_m_s, dtype=float)
     # A relative margin of 1e-6 absorbs the rounding of the tables and their interpolation.
@@ -291,7 +298,7 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
 
 
 def build_profile(length_m: float, closed: bool, limits: ProfileLimits, *,
-                  alt_target=None, speed_target=None) -> PathProfile:
+                  alt_target: ProfileTarget = None, speed_target: ProfileTarget = None) -> PathProfile:
     """A :class:`PathProfile` from target functions of the grid.
 
     ``alt_target`` and ``speed_target`` are each a number, or a callable taking the grid (arc
@@ -299,10 +306,10 @@ def build_profile(length_m: float, closed: bool, limits: ProfileLimits, *,
     """
     s = grid(length_m)
 
-    def on_grid(target):
+    def on_grid(target: ProfileTarget) -> np.ndarray:
         if callable(target):
-            return np.asarray(target(s), dtype=float) * np.ones_like(s)
-        return np.full_like(s, float(target))
+            return np.asarray(np.asarray(target(s), dtype=float) * np.ones_like(s), dtype=float)
+        return np.full_like(s, float(target))  # type: ignore[arg-type]
 
     v = speed_table(s, on_grid(speed_target), limits.along_accel_max_m_s2, closed)
     h = altitude_table(s, on_grid(alt_target), v, limits, closed)

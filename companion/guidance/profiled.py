@@ -8,7 +8,7 @@ handing it ``V(s)`` at the arc length of the previous tick's projection (the sta
 first projection, and through the mid-course phase, which reports ``s = 0``). One tick of delay
 in ``s`` is ``V dt`` metres, over which the profile changes by at most ``a_long dt`` m/s.
 
-Missions at one constant speed are not wrapped (:func:`companion.loop.runner.make_guidance`), so
+Missions at one constant speed are not wrapped (:func:`companion.loop.driver.make_guidance`), so
 they fly exactly as before.
 """
 
@@ -16,7 +16,10 @@ from __future__ import annotations
 
 import math
 
-from companion.guidance.types import GuidanceOutput, VehicleState, frozen_maker
+from typing import Any
+
+from companion.geometry.profile import PathProfile
+from companion.guidance.types import GuidanceLaw, GuidanceOutput, VehicleState, frozen_maker
 
 _vehicle_state = frozen_maker(VehicleState)
 
@@ -24,12 +27,12 @@ _vehicle_state = frozen_maker(VehicleState)
 class ProfiledGuidance:
     """``law`` flown at the profile's local speed; every other attribute is the law's."""
 
-    def __init__(self, law, profile):
+    def __init__(self, law: GuidanceLaw, profile: PathProfile) -> None:
         self.law = law
         self.profile = profile
         self._s_m = 0.0
 
-    def __getattr__(self, name):  # params, path, phase... of the wrapped law
+    def __getattr__(self, name: str) -> Any:  # params, path, phase... of the wrapped law
         return getattr(self.law, name)
 
     @property
@@ -39,7 +42,7 @@ class ProfiledGuidance:
 
     def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         local = _vehicle_state(state.x_m, state.y_m, state.course_rad, self.speed_m_s)
-        out = self.law.step(t_s, local)
+        out: GuidanceOutput = self.law.step(t_s, local)
         if math.isfinite(out.s_proj_m):
             self._s_m = out.s_proj_m
         return out

@@ -11,9 +11,17 @@ Connection strings (as pymavlink spells them):
   dropped and counted (pymavlink's own UDP server would start sending to whoever wrote last).
   After the pinned peer has been silent for ``repin_after_s`` a heartbeat of the *same* system
   and component from a new address re-pins it (an autopilot restart gets a new source port).
+* ``udp:0.0.0.0:14540`` the same as ``udpin:`` (pymavlink's ``mavlink_connection`` and
+  MAVProxy's ``--master`` listen on a plain ``udp:`` address).
 * ``udpout:127.0.0.1:14550`` send to a fixed address, receive replies on the same socket (only
   datagrams from that address are accepted).
-* ``tcp:127.0.0.1:5760`` (ArduPilot SITL), ``/dev/ttyACM0,921600`` (serial).
+* ``tcp:127.0.0.1:5760`` (ArduPilot SITL; a refused connection is retried quietly twice, half a
+  second apart, then reported in one line), ``/dev/ttyACM0,921600`` (serial; 57600 baud if
+  none is given).
+
+Pairing before recording: :func:`connect_autopilot` opens the link and waits for the
+autopilot's heartbeat with the packets kept in memory, so that a failed connection leaves no
+file behind; :meth:`MavLink.attach_tlog` then moves them into the flight's tlog.
 
 Packets are parsed with pymavlink's MAVLink 2 parser (MAVLink 1 is read too). A UDP datagram is
 parsed on its own (no bytes carried over to the next datagram). Rejections are counted by reason
@@ -89,6 +97,10 @@ MAV_RESULT_IN_PROGRESS = mavlink2.MAV_RESULT_IN_PROGRESS
 MAV_RESULT_NAMES = {value: entry.name.removeprefix("MAV_RESULT_")
                     for value, entry in mavlink2.enums["MAV_RESULT"].items() if entry.name != "MAV_RESULT_ENUM_END"}
 MAV_RESULT_NAMES.setdefault(6, "CANCELLED")  # MAV_RESULT_CANCELLED: newer than this dialect
+MAV_SEVERITY_WARNING = mavlink2.MAV_SEVERITY_WARNING
+MAV_SEVERITY_NOTICE = mavlink2.MAV_SEVERITY_NOTICE
+MAV_SEVERITY_INFO = mavlink2.MAV_SEVERITY_INFO
+STATUSTEXT_CHARS = 50  # the text field of STATUSTEXT
 
 #: A time_boot_ms this far behind the newest one means the autopilot restarted.
 RESTART_JUMP_S = 2.0
@@ -161,6 +173,7 @@ class _UdpTransport:
     def __init__(self, host: str, port: int, listen: bool):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.listen = listen
+        self.description = ""
         self.peer: tuple[str, int] | None = None
         try:
             if listen:
@@ -170,7 +183,7 @@ class _UdpTransport:
                 self.peer = (socket.gethostbyname(host), port)
         except OSError as err:
             self.sock.close()
-            raise LinkError(f"udp {host}:{port}: {err.strerror or err}") from err
+            raise LinkError(f"udp {host}:{port}: {err.strerror or err}") from None
         self.sock.setblocking(False)
 
     def fileno(self) -> int:
@@ -202,13 +215,14 @@ class _UdpTransport:
 
 
 class _StreamTransport:
-    """TCP or serial through pymavlink's raw transports (byte stream, no source address)."""
+    """Serial through pymavlink's raw serial port (byte stream, no source address)."""
 
     datagrams = False
 
-    def __init__(self, conn):
+    def __init__(self, conn, description: str = ""):
         self.conn = conn
         self.peer = None
+        self.description = description
 
     def fileno(self) -> int:
         return self.conn.fd
@@ -238,30 +252,125 @@ class _StreamTransport:
             pass
 
 
-def open_transport(connect: str):
-    """Open a connection string (udpin:, udpout:, tcp:, serial DEVICE[,BAUD])."""
+class _TcpTransport:
+    """A TCP client (ArduPilot SITL's ``tcp:127.0.0.1:5760``): byte stream, no source address.
+
+    pymavlink's ``mavtcp`` retries a refused connection by printing ``[Errno 111] Connection
+    refused sleeping`` on stdout and raises the bare socket error; this opens the socket itself,
+    retries quietly (an autopilot that is just starting listens within a second) and fails with
+    one line.
+    """
+
+    datagrams = False
+
+    def __init__(self, host: str, port: int, *, attempts: int = 3, retry_s: float = 0.5,
+                 connect_timeout_s: float = 5.0):
+        where = f"tcp:{host}:{port}"
+        self.description = f"connected to {host}:{port}"
+        self.peer = None
+        self.sock = None
+        for attempt in range(attempts):
+            try:
+                self.sock = socket.create_connection((host, port), timeout=connect_timeout_s)
+                break
+            except ConnectionRefusedError:
+                if attempt + 1 < attempts:
+                    time.sleep(retry_s)
+            except socket.gaierror as err:
+                raise LinkError(f"{where}: unknown host {host!r} ({err.strerror or err})") from None
+            except socket.timeout:
+                raise LinkError(f"{where}: no answer within {connect_timeout_s:g} s "
+                                "(host unreachable, or a firewall drops the connection)") from None
+            except OSError as err:
+                raise LinkError(f"{where}: cannot connect ({err.strerror or err})") from None
+        if self.sock is None:
+            raise LinkError(f"{where}: connection refused: nothing listens on {host}:{port} "
+                            f"(is the autopilot or SITL running? tried {attempts} times)")
+        self.sock.setblocking(False)
+        try:
+            self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        except OSError:
+            pass
+        self.where = where
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def recv(self) -> list[tuple[bytes, object]]:
+        try:
+            data = self.sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
+            return []
+        except OSError as err:
+            raise LinkError(f"{self.where}: connection lost ({err.strerror or err})") from None
+        if not data:
+            raise LinkError(f"{self.where}: connection closed by the autopilot")
+        return [(data, None)]
+
+    def send(self, buf: bytes) -> bool:
+        try:
+            self.sock.sendall(buf)
+        except OSError:
+            pass  # a full socket buffer or a dead peer: the link timeout reports a dead link
+        return True
+
+    def close(self) -> None:
+        try:
+            self.sock.close()
+        except OSError:
+            pass
+
+
+def _port_number(connect: str, text: str) -> int:
     try:
-        if connect.startswith("udpin:") or connect.startswith("udpout:"):
-            kind, rest = connect.split(":", 1)
-            host, port = rest.rsplit(":", 1)
-            return _UdpTransport(host, int(port), listen=(kind == "udpin"))
-        if connect.startswith("tcp:"):
-            host_port = connect[4:]
-            host, port = host_port.rsplit(":", 1)
-            int(port)
-            conn = mavutil.mavtcp(host_port, autoreconnect=False, retries=3)
-            return _StreamTransport(conn)
-        if connect.startswith("/dev/") or connect.upper().startswith("COM"):
-            device, _, baud = connect.partition(",")
-            conn = mavutil.mavserial(device, baud=int(baud or 57600), autoreconnect=False)
-            return _StreamTransport(conn)
-    except LinkError:
-        raise
-    except (OSError, ValueError, Exception) as err:  # noqa: BLE001 - pymavlink raises plain Exception
-        raise LinkError(f"{connect}: cannot open the link ({err})") from err
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not (0 < port < 65536):
+        raise LinkError(f"{connect}: port {text!r} is not a number 1..65535 (expected KIND:HOST:PORT, "
+                        "e.g. udpin:0.0.0.0:14540)")
+    return port
+
+
+#: Connection string kinds: ``udp:`` listens, as pymavlink's ``mavlink_connection`` and MAVProxy's
+#: ``--master`` take it (``input=True``); ``udpout:`` sends to a fixed address.
+UDP_KINDS = {"udpin": True, "udp": True, "udpout": False}
+
+
+def open_transport(connect: str):
+    """Open a connection string (udpin:, udp:, udpout:, tcp:, serial DEVICE[,BAUD])."""
+    kind, sep, rest = connect.partition(":")
+    if sep and kind in UDP_KINDS:
+        host, _, port = rest.rpartition(":")
+        port_n = _port_number(connect, port)
+        if not host:
+            raise LinkError(f"{connect}: expected {kind}:HOST:PORT, e.g. {kind}:0.0.0.0:14540")
+        transport = _UdpTransport(host, port_n, listen=UDP_KINDS[kind])
+        transport.description = (f"listening on {host}:{port_n}" if UDP_KINDS[kind]
+                                 else f"sending to {host}:{port_n}")
+        return transport
+    if sep and kind == "tcp":
+        host, _, port = rest.rpartition(":")
+        port_n = _port_number(connect, port)
+        if not host:
+            raise LinkError(f"{connect}: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:5760")
+        return _TcpTransport(host, port_n)
+    if connect.startswith("/dev/") or connect.upper().startswith("COM"):
+        device, comma, baud_text = connect.partition(",")
+        baud = 57600
+        if comma:
+            if not baud_text.strip().isdigit() or int(baud_text) <= 0:
+                raise LinkError(f"{connect}: baud rate {baud_text!r} is not a positive whole number "
+                                "(expected DEVICE,BAUD, e.g. /dev/ttyACM0,921600)")
+            baud = int(baud_text)
+        try:
+            conn = mavutil.mavserial(device, baud=baud, autoreconnect=False)
+        except Exception as err:  # noqa: BLE001 - pyserial raises its own SerialException
+            raise LinkError(f"{connect}: cannot open the serial port ({err})") from None
+        return _StreamTransport(conn, f"serial {device} at {baud} baud")
     raise LinkError(
-        f"{connect}: unknown connection string (expected udpin:HOST:PORT, udpout:HOST:PORT, "
-        "tcp:HOST:PORT or /dev/DEVICE,BAUD)"
+        f"{connect}: unknown connection string (expected udpin:HOST:PORT, udp:HOST:PORT, "
+        "udpout:HOST:PORT, tcp:HOST:PORT or /dev/DEVICE,BAUD)"
     )
 
 
@@ -296,6 +405,50 @@ class LinkState:
     global_origin: "GlobalOrigin | None" = None  # newest GPS_GLOBAL_ORIGIN (the EKF's local origin)
 
 
+class MemoryRecorder:
+    """Stands in for a :class:`TlogWriter` until the flight's tlog is created (nothing on disk).
+
+    Keeps up to ``max_records`` packets with their UNIX times; older ones are dropped (counted).
+    """
+
+    def __init__(self, max_records: int = 100_000):
+        self.records: list[tuple[float, bytes]] = []
+        self.max_records = int(max_records)
+        self.dropped = 0
+
+    def write(self, packet: bytes, unix_time_s: float | None = None) -> None:
+        if len(self.records) >= self.max_records:
+            self.records.pop(0)
+            self.dropped += 1
+        self.records.append((time.time() if unix_time_s is None else unix_time_s, bytes(packet)))
+
+    def flush(self) -> None:
+        pass
+
+
+def connect_autopilot(connect: str, *, heartbeat_timeout_s: float,
+                      progress: Callable[[str], None] | None = None, **link_kw) -> "MavLink":
+    """Open ``connect`` and pair with an autopilot, creating no file.
+
+    The flight's order (so that a failed connection leaves no empty tlog and no mission copy):
+    check the tlog path (:meth:`TlogWriter.check_writable`), ``link = connect_autopilot(...)``,
+    open the tlog, write the mission beside it, ``link.attach_tlog(tlog)``. Until then the
+    packets of both directions are kept in memory (:class:`MemoryRecorder`), so the tlog still
+    starts with the first heartbeat. ``progress`` gets the waiting status line (see
+    :meth:`MavLink.wait_heartbeat`); ``link_kw`` are :class:`MavLink`'s keywords. On failure the
+    link is closed and the LinkError raised.
+    """
+    link_kw.pop("tlog", None)
+    link = MavLink(connect, tlog=MemoryRecorder(), **link_kw)
+    try:
+        link.wait_heartbeat(heartbeat_timeout_s, progress=progress)
+        link.send_heartbeat()
+    except BaseException:
+        link.close()
+        raise
+    return link
+
+
 class _TlogTap:
     """The ``file`` given to pymavlink's MAVLink object: every packet sent is also recorded."""
 
@@ -321,7 +474,8 @@ class MavLink:
     connect : connection string (see module docstring).
     source_system, source_component : the companion's own ids (component 191 by default).
     signing_key : 32-byte MAVLink 2 key, or None.
-    tlog : an opened :class:`TlogWriter`, or None.
+    tlog : an opened :class:`TlogWriter`, a :class:`MemoryRecorder` (see :meth:`attach_tlog`),
+        or None.
     target_system : pair only with this system id (None = the first autopilot heard).
     autopilot : ``"auto"``, ``"px4"`` or ``"ardupilot"`` (required flavour, checked on pairing).
     repin_after_s : silence of the pinned UDP peer after which a heartbeat of the same
@@ -383,6 +537,7 @@ class MavLink:
         self._restarts_at_position = 0  # self.restarts when the position held was accepted
         self._peer_last_s = math.nan
         self._last_own_heartbeat_s = -math.inf
+        self._event_id = 0  # the id of the last chunked STATUSTEXT event recorded
         self.on_message: Callable | None = None  # optional hook(msg) for accepted messages
 
     # ---------------------------------------------------------------- receiving
@@ -611,20 +766,47 @@ class MavLink:
         if self.clock() - self._last_own_heartbeat_s >= period_s:
             self.send_heartbeat()
 
-    def wait_heartbeat(self, timeout_s: float) -> AutopilotInfo:
-        """Send our heartbeat and wait for an autopilot's; raise LinkError after ``timeout_s``."""
-        deadline = self.clock() + timeout_s
+    def wait_heartbeat(self, timeout_s: float, progress: Callable[[str], None] | None = None,
+                       progress_every_s: float = 1.0) -> AutopilotInfo:
+        """Send our heartbeat and wait for an autopilot's; raise LinkError after ``timeout_s``.
+
+        ``progress(text)``, if given, is called at the start and then every ``progress_every_s``
+        with one status line: what is awaited, on which link, and the seconds elapsed, e.g.
+        ``waiting for a HEARTBEAT from an autopilot on udp:0.0.0.0:14540 (listening on
+        0.0.0.0:14540): 3 s of 15 s``.
+        """
+        t0 = self.clock()
+        deadline = t0 + timeout_s
+        who = f"system {self.target_system}" if self.target_system else "an autopilot"
+        how = getattr(self._transport, "description", "")
+        next_progress = t0
         while self.info is None:
             self.heartbeat_if_due()
-            remaining = deadline - self.clock()
+            now = self.clock()
+            remaining = deadline - now
             if remaining <= 0:
-                who = f"system {self.target_system}" if self.target_system else "an autopilot"
                 raise LinkError(
                     f"{self.connect}: no HEARTBEAT from {who} within {timeout_s:g} s "
                     "(is the autopilot running and the connection string right?)"
                 )
+            if progress is not None and now >= next_progress:
+                progress(f"waiting for a HEARTBEAT from {who} on {self.connect}"
+                         f"{f' ({how})' if how else ''}: {now - t0:.0f} s of {timeout_s:g} s")
+                next_progress += progress_every_s
             self.poll(min(0.1, remaining))
         return self.info
+
+    def attach_tlog(self, tlog: TlogWriter) -> None:
+        """Record into ``tlog`` from now on, starting with what was kept in memory before it.
+
+        A link opened by :func:`connect_autopilot` keeps every packet sent and received (with its
+        time) until the flight's tlog exists; they are written first, in order, with their times.
+        """
+        early = self.tlog
+        self.tlog = tlog
+        if isinstance(early, MemoryRecorder):
+            for unix_time_s, packet in early.records:
+                tlog.write(packet, unix_time_s=unix_time_s)
 
     def link_age_s(self) -> float:
         """Seconds since the paired autopilot's last heartbeat."""
@@ -781,6 +963,30 @@ class MavLink:
                                                       int(array_id) % 65536, values)
         self.tlog.write(bytes(msg.pack(self._recorder)))
         self._recorder.seq = (self._recorder.seq + 1) % 256
+
+    def record_event(self, text: str, severity: int = MAV_SEVERITY_INFO) -> None:
+        """Write one of the companion's own events to the tlog as STATUSTEXT (never sent).
+
+        From the companion's system and component, so ``companion log summary`` can list the
+        companion's decisions (holds, overrides, arming refusals, failsafes) beside the
+        autopilot's. A text longer than a STATUSTEXT's 50 characters is split into chunks with
+        one nonzero ``id`` and ``chunk_seq`` 0, 1, ... (MAVLink 2); a chunk shorter than 50
+        characters (an empty one if need be) ends it.
+        """
+        if self.tlog is None:
+            return
+        data = text.encode("utf-8")
+        chunks = [data[i:i + STATUSTEXT_CHARS] for i in range(0, len(data), STATUSTEXT_CHARS)] or [b""]
+        event_id = 0
+        if len(chunks) > 1:
+            if len(chunks[-1]) == STATUSTEXT_CHARS:
+                chunks.append(b"")
+            self._event_id = self._event_id % 65535 + 1
+            event_id = self._event_id
+        for seq, chunk in enumerate(chunks[:256]):
+            msg = self._recorder.statustext_encode(int(severity), chunk, event_id, seq)
+            self.tlog.write(bytes(msg.pack(self._recorder)))
+            self._recorder.seq = (self._recorder.seq + 1) % 256
 
     def counters(self) -> dict:
         return {"received": self.received, "sent": self.sent, "autopilot_restarts": self.restarts,

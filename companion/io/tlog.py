@@ -82,6 +82,35 @@ class TlogWriter:
             )
         return self
 
+    def check_writable(self) -> "TlogWriter":
+        """What :meth:`open` checks, creating nothing: the nearest existing directory of the path
+        is writable (or the file itself, if it exists) and has ``min_free_bytes`` free.
+
+        Lets a flight refuse an unusable log path before it connects, and open the log only once
+        the autopilot has answered (a failed connection then leaves no empty file).
+        """
+        target = self.path.parent if str(self.path.parent) else Path(".")
+        existing = target
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        if self.path.exists():
+            ok = self.path.is_file() and os.access(self.path, os.W_OK)
+        else:
+            ok = existing.is_dir() and os.access(existing, os.W_OK | os.X_OK)
+        if not ok:
+            why = "not a directory" if existing.exists() and not existing.is_dir() else "permission denied"
+            raise LogError(f"{self.path}: cannot write the flight log ({why}: {existing})")
+        try:
+            free = shutil.disk_usage(existing).free
+        except OSError:
+            free = None
+        if free is not None and free < self.min_free_bytes:
+            raise LogError(
+                f"{self.path}: only {free // 1024} KiB free on the log's disk, "
+                f"expected at least {self.min_free_bytes // (1024 * 1024)} MiB"
+            )
+        return self
+
     @property
     def is_open(self) -> bool:
         return self._file is not None

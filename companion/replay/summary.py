@@ -16,6 +16,8 @@ Conventions
   ``count / duration`` of the whole log instead.
 - Modes come from heartbeats of flight controllers (``autopilot`` other than
   MAV_AUTOPILOT_INVALID); an entry is recorded whenever the mode or the armed state changes.
+- ``statustext``: every STATUSTEXT (the autopilot's messages and the companion's own events,
+  which it records from its component), long texts reassembled from their MAVLink 2 chunks.
 - A link gap is an interval longer than :data:`GAP_THRESHOLD_S` between two consecutive records
   from one sender. Senders whose median interval is itself longer than the threshold (a ground
   station sending only a 1 Hz heartbeat) are marked ``sparse`` and not searched for gaps.
@@ -66,10 +68,14 @@ def summarise_log(
     -------
     dict with ``file``, ``size_bytes``, ``records``, ``bytes_skipped``, ``warnings``,
     ``start_unix_s``, ``duration_s``, ``mavlink_versions``, ``systems``, ``messages``,
-    ``modes``, ``link_gaps`` (see the module docstring for their meaning).
+    ``modes``, ``statustext``, ``gap_threshold_s``, ``link_gaps`` (see the module docstring
+    for their meaning).
     """
     heartbeat_id = MSG_ID["HEARTBEAT"]
-    reader = TlogReader(path, decode_ids={heartbeat_id}, on_warning=on_warning)
+    statustext_id = MSG_ID["STATUSTEXT"]
+    reader = TlogReader(path, decode_ids={heartbeat_id, statustext_id}, on_warning=on_warning)
+    texts: list[dict] = []
+    open_chunks: dict[tuple[int, int, int], dict] = {}
     times_by_source: dict[tuple[int, int], list[float]] = defaultdict(list)
     span_by_message: dict[tuple[int, int, str], list] = {}
     identity: dict[tuple[int, int], tuple[int, int]] = {}
@@ -96,6 +102,8 @@ def summarise_log(
             else:
                 span[0] += 1
                 span[2] = rec.time_s
+            if rec.msg_id == statustext_id and rec.msg is not None:
+                _collect_statustext(rec, source, first_time, texts, open_chunks)
             if rec.msg_id == heartbeat_id and rec.msg is not None:
                 hb = rec.msg
                 identity[source] = (hb.type, hb.autopilot)
@@ -123,8 +131,32 @@ def summarise_log(
         "systems": systems,
         "messages": messages,
         "modes": modes,
+        "statustext": texts + list(open_chunks.values()),
+        "gap_threshold_s": float(gap_threshold_s),
         "link_gaps": link_gaps,
     }
+
+
+def _collect_statustext(rec, source, first_time, texts: list, open_chunks: dict) -> None:
+    """One STATUSTEXT record: a whole text (``id`` 0), or a chunk of a long one (MAVLink 2
+    ``id``/``chunk_seq``; a chunk shorter than 50 characters ends it)."""
+    msg = rec.msg
+    text = msg.text.decode("utf-8", "replace") if isinstance(msg.text, bytes) else str(msg.text)
+    text = text.split("\x00", 1)[0]
+    event_id = int(getattr(msg, "id", 0) or 0)
+    entry = {"time_s": rec.time_s - first_time, "system": source[0], "component": source[1],
+             "severity": enum_name("MAV_SEVERITY", msg.severity), "text": text}
+    if event_id == 0:
+        texts.append(entry)
+        return
+    key = (source[0], source[1], event_id)
+    held = open_chunks.get(key)
+    if held is None:
+        open_chunks[key] = held = entry
+    else:
+        held["text"] += text
+    if len(text.encode("utf-8")) < 50:
+        texts.append(open_chunks.pop(key))
 
 
 def format_summary(summary: dict, max_gaps_per_source: int = 5) -> str:
@@ -152,7 +184,14 @@ def format_summary(summary: dict, max_gaps_per_source: int = 5) -> str:
     for m in summary["modes"]:
         lines.append(f"  {m['time_s']:8.2f} s  {m['system']:>3}/{m['component']:<3} {m['mode']:<16} "
                      f"{'armed' if m['armed'] else 'disarmed'}")
-    lines += ["", f"link gaps longer than {GAP_THRESHOLD_S} s (per sender):"]
+    lines += ["", "status texts (time since start, system/component, severity, text):"]
+    if not summary.get("statustext"):
+        lines.append("  (none)")
+    for s in summary.get("statustext", []):
+        severity = str(s["severity"]).removeprefix("MAV_SEVERITY_")
+        lines.append(f"  {s['time_s']:8.2f} s  {s['system']:>3}/{s['component']:<3} {severity:<9} {s['text']}")
+    threshold_s = summary.get("gap_threshold_s", GAP_THRESHOLD_S)
+    lines += ["", f"link gaps longer than {threshold_s:g} s (per sender):"]
     by_source: dict[tuple[int, int], list[dict]] = defaultdict(list)
     for g in summary["link_gaps"]:
         by_source[(g["system"], g["component"])].append(g)

@@ -28,6 +28,9 @@ from typing import Sequence
 
 import numpy as np
 
+#: The row name of the whole-flight figures in every metrics table (sim, fly, demo, replay).
+OVERALL_ROW = "overall"
+
 METRIC_KEYS = ("d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "duration_s", "samples")
 #: Added when the vertical / speed error series are given.
 PROFILE_METRIC_KEYS = ("h_rms_m", "h_max_m", "v_err_rms_m_s")

@@ -105,3 +105,29 @@ def test_import_rejects_a_negative_speed_option(tmp_path, capsys):
     assert main(["mission", "import", str(src), "-o", str(tmp_path / "o.yaml"), "--speed-m-s", "-3"]) == 2
     err = capsys.readouterr().err
     assert err.strip() == "companion: error: --speed-m-s: expected a finite number > 0, got -3.0"
+
+
+PLAN = Path(__file__).resolve().parents[2] / "missions" / "qgc_inspection.plan"
+
+
+def test_import_keeps_an_existing_output_unless_forced(tmp_path, capsys):
+    out = tmp_path / "o.yaml"
+    out.write_text("mine\n")
+    assert main(["mission", "import", str(PLAN), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == (f"companion: error: {out}: already exists; not overwritten "
+                           "(pass --force to replace it, or -o - to print)")
+    assert out.read_text() == "mine\n"
+    assert main(["mission", "import", str(PLAN), "-o", str(out), "--force"]) == 0
+    assert out.read_text().startswith("#") or "path:" in out.read_text()
+    assert out.read_text() != "mine\n"
+
+
+def test_import_to_stdout_prints_only_the_yaml(tmp_path, capsys):
+    assert main(["mission", "import", str(PLAN), "-o", "-"]) == 0
+    captured = capsys.readouterr()
+    assert not (tmp_path / "-").exists() and not Path("-").exists()
+    doc = tmp_path / "from_stdout.yaml"
+    doc.write_text(captured.out)
+    assert main(["mission", "check", str(doc)]) == 0  # stdout alone is a valid mission
+    assert "<stdout>: wrote" in captured.err

@@ -160,7 +160,7 @@ def test_waypoint_altitudes_become_a_profile_without_flags_and_altitude_m_still_
     for (lat, lon), h in zip(WAYPOINTS, doc["altitude_m"]):
         assert_on_path(mission, [(lat, lon)], h, HOME)
     assert mission.profile is not None and mission.altitude_m == pytest.approx(40.0)
-    code, _, out = run_import(tmp_path, "alt.plan", plan_text(items), "--altitude-m", "50")
+    code, _, out = run_import(tmp_path, "alt.plan", plan_text(items), "--altitude-m", "50", "--force")
     assert code == 0 and load_mission(out).altitude_m == 50.0 and load_mission(out).profile is None
 
 

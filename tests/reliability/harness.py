@@ -52,6 +52,17 @@ def write_mission(directory: Path, text: str = LINE_MISSION, name: str = "line.y
     return path
 
 
+def default_sigint() -> None:
+    """In the child before exec: SIGINT back to its default action.
+
+    A shell without job control starts background commands (``pytest ... &``) with SIGINT
+    ignored, and children inherit that; a Python child that starts with SIGINT ignored never
+    raises KeyboardInterrupt, so a Ctrl-C test would wait for nothing. With the default action
+    restored, the child's interpreter installs its own handler as it would from a terminal.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class Proc:
     """A child process whose stdout and stderr are collected by reader threads."""
 
@@ -59,7 +70,7 @@ class Proc:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.argv = argv
         self.p = subprocess.Popen(argv, cwd=str(cwd), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                  text=True, env=env)
+                                  text=True, env=env, preexec_fn=default_sigint)
         self.out: list[str] = []
         self.err: list[str] = []
         self._threads = [threading.Thread(target=self._read, args=(self.p.stdout, self.out), daemon=True),

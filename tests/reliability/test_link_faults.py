@@ -215,6 +215,23 @@ def test_stranger_on_the_companion_port_is_ignored_and_never_answered(hostile_li
            stranger_received=f.stranger_received)
 
 
+def companion_stall_s(records, t0_s: float, t1_s: float, period_s: float = 0.02) -> float:
+    """The longest pause of the companion's loop between two tlog times, beyond one tick.
+
+    A gap between consecutive guidance records (or between ``t0_s`` / ``t1_s`` and the nearest
+    record) longer than a tick means the loop did not run: the process was descheduled.
+    """
+    times = [t0_s] + [r._timestamp for r in records if t0_s < r._timestamp < t1_s] + [t1_s]
+    return max(0.0, max(b - a for a, b in zip(times, times[1:])) - period_s)
+
+
+def test_companion_stall_is_the_longest_gap_beyond_a_tick():
+    recs = [SimpleNamespace(_timestamp=t) for t in (10.00, 10.02, 10.04, 10.50, 10.52)]
+    assert companion_stall_s(recs, 10.0, 10.52) == pytest.approx(0.46 - 0.02)
+    assert companion_stall_s(recs, 10.0, 10.04) == pytest.approx(0.0)
+    assert companion_stall_s(recs, 9.70, 10.02) == pytest.approx(0.28)  # before the first record
+
+
 @pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
 def test_one_second_position_blackout_holds_then_resumes(tmp_path, autopilot):
     port = free_udp_port()
@@ -242,13 +259,20 @@ def test_one_second_position_blackout_holds_then_resumes(tmp_path, autopilot):
     last_hold = max(r._timestamp for r in holds)
     # Every hold tick commands zero horizontal velocity and lies inside the blackout.
     assert all(r.data[F_VN] == 0.0 and r.data[F_VE] == 0.0 for r in holds)
-    assert t_black0 < first_hold and last_hold < first_after + 0.1
     # Hold starts once the newest sample is older than --stale-s (0.3 s), within about a tick
     # (generous for a loaded machine), and guidance is back within a tick or two of the data.
+    # On a machine loaded beyond its cores the companion's own process can be descheduled for a
+    # few hundred ms; such a pause shows in its tick records (a gap longer than a tick) and is
+    # added to the bound: what is checked is that the hold comes on the first tick the loop
+    # runs past the limit, and guidance on the first tick after the data is back.
     stale_to_hold = first_hold - last_before
-    assert 0.3 <= stale_to_hold <= 0.3 + 0.25, stale_to_hold
+    stall_before = companion_stall_s(g, last_before, first_hold)
+    assert 0.3 <= stale_to_hold <= 0.3 + 0.25 + stall_before, (stale_to_hold, stall_before)
     resumed = [r for r in g if r._timestamp > last_hold and r.data[F_PHASE] != PHASE_HOLD]
-    assert resumed and resumed[0]._timestamp - first_after <= 0.2
+    assert resumed
+    stall_after = companion_stall_s(g, first_after, resumed[0]._timestamp)
+    assert t_black0 < first_hold and last_hold < first_after + 0.1 + stall_after
+    assert resumed[0]._timestamp - first_after <= 0.2 + stall_after, stall_after
     # ... and the path following goes on: the vehicle stopped on the path, so it stays on it.
     assert all(abs(r.data[F_XTRACK]) < 0.5 for r in resumed)
     # Hold ticks in the summary match the records; no hold outside the blackout.

@@ -200,3 +200,20 @@ def test_nearly_full_disk_is_refused_before_the_link_is_opened(tmp_path, monkeyp
         runner.run()
     assert time.monotonic() - t0 < 5.0
     assert runner.link is None
+
+
+def test_children_get_a_working_ctrl_c_even_when_started_from_a_background_shell():
+    # A background shell starts pytest with SIGINT ignored and children inherit that: the
+    # SIGINT test above would then wait for a flight that never sees its Ctrl-C.
+    import sys
+
+    from harness import Proc
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as `pytest ... &` would start
+    try:
+        child = Proc([sys.executable, "-c",
+                      "import signal; print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)"])
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert child.wait(30) == 0
+    assert "".join(child.out).strip() == "True"

@@ -147,7 +147,8 @@ def test_mavproxy_tlog_of_the_mock_is_read_and_summarised(tmp_path):
     proxy = subprocess.Popen(
         [sys.executable, str(mavproxy), f"--master=udpin:127.0.0.1:{port}", f"--logfile={tlog}",
          "--non-interactive"],
-        cwd=tmp_path, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        cwd=tmp_path, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # stopped with SIGINT below
     try:
         deadline = time.monotonic() + 30.0
         while time.monotonic() < deadline and (not tlog.exists() or tlog.stat().st_size < 8_000):

@@ -92,3 +92,19 @@ def test_unreadable_file_exits_2_with_one_line_and_no_traceback(tmp_path, capsys
     assert "no MAVLink records" in err
     assert main(["log", "summary", str(tmp_path / "missing.tlog")]) == 2
     assert "cannot read" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("threshold, header, gaps", [
+    (None, "link gaps longer than 0.5 s (per sender):", 1),
+    ("2", "link gaps longer than 2 s (per sender):", 0),  # the 1.5 s pause is below 2 s
+    ("1.25", "link gaps longer than 1.25 s (per sender):", 1),
+])
+def test_gap_threshold_changes_the_header_it_reports_under(tmp_path, capsys, threshold, header, gaps):
+    path = px4_flight_with_a_pause().write(tmp_path / "px4.tlog")
+    argv = ["log", "summary", str(path)] + (["--gap-threshold", threshold] if threshold else [])
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert header in text.splitlines()
+    assert text.count("gaps, longest") == gaps
+    assert main(argv + ["--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["gap_threshold_s"] == float(threshold or 0.5)

@@ -164,7 +164,8 @@ def test_mavproxy_downloads_parameters_shows_and_switches_modes_arms_and_logs(tm
          f"--state-basedir={tmp_path}", f"--logfile={gcs_tlog}",
          "--default-modules=log,signing,wp,ftp,param,arm,mode,misc,cmdlong",
          f"--cmd={_mavproxy_scripts(tmp_path)}"],
-        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # stopped with SIGINT below
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(iter(proxy.stdout.readline, "")), daemon=True)
     reader.start()

@@ -346,3 +346,11 @@ def test_without_an_ekf_origin_a_request_is_accepted_and_nothing_follows(mock_fa
     assert client.wait("HEARTBEAT") is not None
     assert client.command(M.MAV_CMD_REQUEST_MESSAGE, 49) == M.MAV_RESULT_ACCEPTED
     assert client.wait("GPS_GLOBAL_ORIGIN", 1.5) is None
+
+
+def test_every_sitl_mock_option_has_help_text():
+    from sitl_mock.cli import build_parser
+
+    missing = [a.option_strings[0] for a in build_parser()._actions
+               if a.option_strings and not (a.help or "").strip()]
+    assert missing == []
