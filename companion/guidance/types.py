@@ -88,6 +88,57 @@ class GuidanceParams:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
 
 
+#: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
+VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "speed_sag_s", "yaw_rate_max_deg_s")
+
+
+@dataclass(frozen=True)
+class VehicleModel:
+    """How the vehicle flies velocity + yaw-rate setpoints (docs/vehicle_model.md).
+
+    The horizontal velocity follows the commanded one seen ``delay_s`` late, its speed reduced in
+    turns by ``speed_sag_s`` times the lateral acceleration, through a first-order lag of time
+    constant ``lag_s``, its acceleration limited to ``a_max_m_s2``; the yaw rate is limited to
+    ``yaw_rate_max_deg_s``. The mission's ``vehicle:`` block, ``companion identify``'s output and
+    the mock's ``--vehicle-model`` file share these keys. The defaults are the mock's historical
+    copter (0.3 s lag, 5 m/s^2, no delay, no sag, 90 deg/s).
+
+    Attributes
+    ----------
+    a_max_m_s2 : horizontal (in a turn at constant speed: lateral) acceleration limit, > 0.
+    delay_s : dead time from a setpoint sent to the vehicle's response, >= 0.
+    lag_s : time constant of the first-order velocity response, >= 0.
+    accel_lag_s : time constant of a second lag, on the acceleration the velocity loop asks for
+        (0: the first-order model), >= 0.
+    speed_sag_s : speed lost per unit of lateral acceleration in a turn (m/s per m/s^2), >= 0.
+    yaw_rate_max_deg_s : yaw-rate limit, > 0.
+    """
+
+    a_max_m_s2: float = 5.0
+    delay_s: float = 0.0
+    lag_s: float = 0.3
+    accel_lag_s: float = 0.0
+    speed_sag_s: float = 0.0
+    yaw_rate_max_deg_s: float = 90.0
+
+    def __post_init__(self) -> None:
+        for name in VEHICLE_MODEL_KEYS:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ValueError(f"vehicle.{name}: expected a finite number, got {value!r}")
+            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s")
+            if value < 0 or (strict and value == 0):
+                raise ValueError(f"vehicle.{name}: expected a number {'>' if strict else '>='} 0, got {value!r}")
+
+    def rollout_tau_s(self) -> float:
+        """The single first-order time constant that best stands for lag plus delay in the
+        guidance's rollouts (a dead time d followed by lags tau_1, tau_2 has the mean delay d + tau_1 + tau_2)."""
+        return self.lag_s + self.delay_s + self.accel_lag_s
+
+    def as_dict(self) -> dict:
+        return {name: float(getattr(self, name)) for name in VEHICLE_MODEL_KEYS}
+
+
 @dataclass(frozen=True)
 class VehicleState:
     """What the guidance needs of the vehicle at one tick (local ENU)."""
