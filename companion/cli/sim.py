@@ -50,7 +50,7 @@ def run(args) -> int:
 
     from companion.guidance.two_phase import TwoPhaseGuidance
     from companion.mission import load_mission
-    from companion.sim.simulator import simulate
+    from companion.sim.simulator import LagModel, simulate
 
     mission = load_mission(args.mission)
     params = mission.guidance
@@ -71,7 +71,8 @@ def run(args) -> int:
         raise MissionError(f"--t-max-s: expected a number > 0, got {args.t_max_s}")
     start = VehicleState(x0, y0, h0, mission.speed_m_s)
     law = TwoPhaseGuidance(path, params)
-    result = simulate(path, law, start, params, t_max_s=args.t_max_s)
+    model = LagModel.from_vehicle(mission.vehicle) if mission.vehicle is not None else None
+    result = simulate(path, law, start, params, model=model, t_max_s=args.t_max_s)
     metrics = result.metrics
     summary = {
         "mission": mission.name, "method": params.method,

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field
 
 from companion.geometry.paths import Path
-from companion.guidance.types import GuidanceParams
+from companion.guidance.types import GuidanceParams, VehicleModel
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
 
@@ -65,6 +65,7 @@ class Mission:
     frame : the frame the file was written in (``local_enu``, ``local_ned``, ``geodetic``).
     origin : the WGS-84 origin of a ``geodetic`` mission, else None.
     warnings : one-line warnings found while loading (e.g. curvature too tight for L1).
+    vehicle : the ``vehicle:`` block (:class:`companion.guidance.types.VehicleModel`), or None.
     """
 
     name: str
@@ -79,6 +80,7 @@ class Mission:
     frame: str = "local_enu"
     origin: GeodeticOrigin | None = None
     warnings: tuple[str, ...] = ()
+    vehicle: VehicleModel | None = None
 
     def __post_init__(self) -> None:
         if self.on_finish not in ON_FINISH:

@@ -60,7 +60,10 @@ YAW_SATURATION_MARGIN = 1.2  # command at least 20 % above the flown rate counts
 PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s")
 _LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0])
 _UPPER = np.array([1.5, 3.0, 30.0, 2.0, 2.0])
-SECOND_ORDER_GAIN = 0.1  # the second-order model is kept when it cuts the residual RMS by this share
+# The second-order model is kept when it cuts the free-run residual RMS by this share of it and
+# by this share of the lateral acceleration's RMS (a cut of a tiny residual is no evidence).
+SECOND_ORDER_GAIN = 0.1
+SECOND_ORDER_GAIN_ABS = 0.02
 
 
 class IdentifyError(ValueError):
@@ -158,6 +161,16 @@ def smoothed(s: Samples) -> np.ndarray:
     return savgol_filter(s.vel_ne_m_s, window, 2, axis=0, mode="interp")
 
 
+def _smooth_like_measured(s: Samples, acc: np.ndarray) -> np.ndarray:
+    """The same smoother applied to a model's acceleration, so a free run is compared with the
+    measurement like with like (both linear filters commute with differencing)."""
+    dt = float(s.t_s[1] - s.t_s[0])
+    window = max(5, int(round(SMOOTH_S / dt)) | 1)
+    if len(s.t_s) <= window:
+        return acc
+    return savgol_filter(acc, window, 2, axis=0, mode="interp")
+
+
 def _measured(s: Samples):
     dt = float(s.t_s[1] - s.t_s[0])
     v = smoothed(s)
@@ -180,8 +193,10 @@ def simulate(s: Samples, theta, *, one_step: bool = False):
 
     ``theta`` = ``(delay_s, lag_s, a_max_m_s2, speed_sag_s, accel_lag_s)``. In a free run
     (default) the state is the model's own, restarted from the (smoothed) measurement after each
-    gap in the command stream; with ``one_step`` every step starts from the measured state, so
-    the result is the one-step prediction.
+    gap in the command stream; with ``one_step`` every step starts from the measured velocity
+    (and acceleration, for the second-order model), so the result is the one-step prediction.
+    The speed sag always reads the model's own lateral acceleration: the measured one, a
+    difference of a noisy estimate, would feed its noise straight into the prediction.
     """
     dt, acc_m, a_lat_m, _, v_m = _measured(s)
     delay, lag, a_max, sag, acc_lag = (float(x) for x in theta)
@@ -200,8 +215,8 @@ def simulate(s: Samples, theta, *, one_step: bool = False):
             vn, ve = v_m[i]
             if i > 0:
                 an, ae = acc_m[i - 1]
-                lat_abs = abs(a_lat_m[i - 1])
             if not valid[i]:
+                lat_abs = abs(a_lat_m[i - 1]) if i > 0 else 0.0
                 continue
         cn, ce = c[i]
         cs = math.hypot(cn, ce)
@@ -251,7 +266,7 @@ def _fit(s: Samples, second_order: bool, start, max_nfev: int):
 
     def residual(x):
         theta = x if second_order else np.append(x, 0.0)
-        acc, _ = simulate(s, theta)
+        acc = _smooth_like_measured(s, simulate(s, theta)[0])
         u = _used(s, v_mid, theta[0])
         return (acc[u] - acc_m[u]).ravel()
 
@@ -307,12 +322,13 @@ def identify(s: Samples) -> IdentifyResult:
                             "velocity setpoints: expected at least 10 s")
     theta1, se1, rms1 = _fit(s, False, (0.15, 0.3, 3.0, 0.05), 40)
     theta2, se2, rms2 = _fit(s, True, (*theta1[:4], 0.05), 20)
-    second = rms2 < (1.0 - SECOND_ORDER_GAIN) * rms1
+    a_lat_rms = float(np.sqrt(np.mean(a_lat_m[u0] ** 2)))
+    second = rms2 < (1.0 - SECOND_ORDER_GAIN) * rms1 and rms1 - rms2 > SECOND_ORDER_GAIN_ABS * a_lat_rms
     theta, se = (theta2, se2) if second else (theta1, se1)
     u = _used(s, v_mid, theta[0])
     a_lat = a_lat_m[u]
     one, sat = simulate(s, theta, one_step=True)
-    free, _ = simulate(s, theta)
+    free = _smooth_like_measured(s, simulate(s, theta)[0])
     a_lat_one = lateral_m_s2(v_mid, one)[u]
     a_lat_free = lateral_m_s2(v_mid, free)[u]
     quality = {
@@ -360,7 +376,7 @@ def identify(s: Samples) -> IdentifyResult:
         unidentified["speed_sag_s"] = (f"only {excitation['turning_steady_speed_s']:.1f} s of turning at a "
                                        f"steady commanded speed (expected {MIN_SAG_TURNING_S:.0f} s)")
     # The sag is zero for a vehicle without it: judge its standard error in absolute terms.
-    scales = {"delay_s": max(theta[0], 0.05), "lag_s": theta[1], "a_max_m_s2": theta[2],
+    scales = {"delay_s": max(theta[0], 0.1), "lag_s": theta[1], "a_max_m_s2": theta[2],
               "speed_sag_s": max(theta[3], 0.2), "accel_lag_s": max(theta[4], 0.05)}
     for i, name in enumerate(PARAMS):
         if name not in unidentified and not se[i] <= MAX_RELATIVE_SE * scales[name]:
