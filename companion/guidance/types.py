@@ -46,6 +46,9 @@ class GuidanceParams:
     a_max_m_s2 : ``predictive`` only: the vehicle's lateral-acceleration limit (> 0, ``math.inf``
         for none); every command is clipped to it and the rollouts know it.
     wind_x_m_s, wind_y_m_s : ``predictive`` only: known steady wind (ENU) its rollouts assume.
+    adapt_model : ``predictive`` only: watch the flown lateral acceleration and re-plan with the
+        model that explains it, or fall back to the feedback core (on when the mission has a
+        ``vehicle:`` block; :class:`companion.guidance.predictive.ModelMonitor`).
     """
 
     method: str = "corrector"
@@ -62,8 +65,11 @@ class GuidanceParams:
     a_max_m_s2: float = math.inf
     wind_x_m_s: float = 0.0
     wind_y_m_s: float = 0.0
+    adapt_model: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.adapt_model, bool):
+            raise ValueError(f"adapt_model: expected true or false, got {self.adapt_model!r}")
         if self.method not in METHODS:
             raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
         if self.midcourse_trigger not in MIDCOURSE_TRIGGERS:

@@ -268,6 +268,7 @@ class _Builder:
             model = VehicleModel(**{k: vehicle[k] for k in VEHICLE_MODEL_KEYS})
             values["rollout_tau_s"] = model.rollout_tau_s()
             values["a_max_m_s2"] = min(values["a_max_m_s2"], model.a_max_m_s2)
+            values["adapt_model"] = True
         try:
             return GuidanceParams(**values)
         except ValueError as err:  # the schema's ranges should make this unreachable
