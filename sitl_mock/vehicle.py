@@ -201,6 +201,8 @@ class VehicleModel:
         due = self.state.t_s - self.params.delay_s + 1e-9
         while len(queue) > 1 and queue[1][0] <= due:
             queue.popleft()
+        if queue[0][0] > due:  # no command old enough yet: carry on as now
+            return tuple(self.state.vel_ned_m_s), self.state.yaw_rate_rad_s
         _, vel, yaw_rate = queue[0]
         return vel, yaw_rate
 

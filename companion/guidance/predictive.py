@@ -39,6 +39,11 @@ its feedback core and adds:
    in time. On the path (d0, d0' of millimetres) the reference is millimetres too and the cost is
    the plain ``d^2``. See :func:`capture_reference`.
 
+7. **A model monitor** (``adapt_model``, on with a mission's ``vehicle:`` block): when the
+   lateral acceleration the vehicle flies departs from the model (more lag, less acceleration),
+   the law plans with the candidate model that explains it, or drops the plan and flies its
+   feedback core; see :class:`ModelMonitor`.
+
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does. An
 open path is continued straight past its end, as the baselines do.
@@ -300,7 +305,8 @@ def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s
 # Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
 MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 MONITOR_LAG_FLOOR_S = 0.1  # the candidates of a nominal lag of 0 are multiples of this
-MONITOR_A_MAX_FACTORS = (1.0, 0.7, 0.5, 0.35)
+MONITOR_A_MAX_FACTORS = (1.0, 0.7, 0.5)
+MONITOR_GAP_FACTOR = 2.5  # a step this many times the shortest seen: ticks were skipped or coasted
 MONITOR_OBS_TC_S = 0.2  # low-pass of the observed (and each candidate's) lateral acceleration
 MONITOR_ERR_TC_S = 4.0  # averaging time of each candidate's squared prediction error
 MONITOR_WARMUP_S = 3.0  # no switching before this much flight
@@ -317,7 +323,9 @@ class ModelMonitor:
     same low-pass (:data:`MONITOR_OBS_TC_S`), and each candidate's squared error is averaged over
     :data:`MONITOR_ERR_TC_S`. The model in use switches to the best candidate when its error is
     under :data:`MONITOR_SWITCH_RATIO` of the one in use (hysteresis; the nominal model to begin
-    with). ``unexplained`` is the error of the model in use over the observed acceleration's
+    with). Over a gap in the ticks (skipped, or coasted by the flight loop while a step ran
+    late: the vehicle then flew setpoints the law did not choose) nothing is compared and the
+    candidates restart from the observation. ``unexplained`` is the error of the model in use over the observed acceleration's
     mean square: above :data:`MONITOR_FALLBACK_SHARE` no candidate stands for the vehicle and the
     law flies its feedback core alone (no plan). Pure arithmetic on the inputs: deterministic.
     """
@@ -339,6 +347,7 @@ class ModelMonitor:
         self._obs_f = 0.0
         self._obs_ms = 0.0
         self._prev: tuple[float, float] | None = None  # (t_s, course_rad)
+        self._dt_min = math.inf
         self._t0: float | None = None
         self.unexplained = 0.0
 
@@ -360,6 +369,14 @@ class ModelMonitor:
         dt = t_s - prev[0]
         dpsi = math.remainder(course_rad - prev[1], 2.0 * math.pi)
         observed = max(speed_m_s, MIN_SPEED_M_S) * dpsi / dt
+        self._dt_min = min(self._dt_min, dt)
+        if dt > MONITOR_GAP_FACTOR * self._dt_min:
+            # Ticks were skipped or coasted: the vehicle flew setpoints this law did not choose.
+            # Compare nothing over the gap; restart every candidate from what is observed.
+            self._a[:] = observed
+            self._a_f[:] = observed
+            self._obs_f = observed
+            return
         beta = 1.0 - math.exp(-dt / MONITOR_OBS_TC_S)
         gamma = 1.0 - math.exp(-dt / MONITOR_ERR_TC_S)
         with np.errstate(divide="ignore", over="ignore"):
