@@ -306,7 +306,7 @@ def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s
 MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 MONITOR_LAG_FLOOR_S = 0.1  # the candidates of a nominal lag of 0 are multiples of this
 MONITOR_A_MAX_FACTORS = (1.0, 0.7, 0.5)
-MONITOR_GAP_FACTOR = 2.5  # a step this many times the shortest seen: ticks were skipped or coasted
+MONITOR_GAP_FACTOR = 3.0  # a step this many times the usual one: ticks were skipped or coasted
 MONITOR_OBS_TC_S = 0.2  # low-pass of the observed (and each candidate's) lateral acceleration
 MONITOR_ERR_TC_S = 4.0  # averaging time of each candidate's squared prediction error
 MONITOR_WARMUP_S = 3.0  # no switching before this much flight
@@ -347,7 +347,7 @@ class ModelMonitor:
         self._obs_f = 0.0
         self._obs_ms = 0.0
         self._prev: tuple[float, float] | None = None  # (t_s, course_rad)
-        self._dt_min = math.inf
+        self._dt_usual: float | None = None
         self._t0: float | None = None
         self.unexplained = 0.0
 
@@ -369,8 +369,9 @@ class ModelMonitor:
         dt = t_s - prev[0]
         dpsi = math.remainder(course_rad - prev[1], 2.0 * math.pi)
         observed = max(speed_m_s, MIN_SPEED_M_S) * dpsi / dt
-        self._dt_min = min(self._dt_min, dt)
-        if dt > MONITOR_GAP_FACTOR * self._dt_min:
+        # the usual step: a running mean (tick times jitter with the samples' arrival)
+        usual = self._dt_usual = dt if self._dt_usual is None else self._dt_usual + 0.05 * (dt - self._dt_usual)
+        if dt > MONITOR_GAP_FACTOR * usual:
             # Ticks were skipped or coasted: the vehicle flew setpoints this law did not choose.
             # Compare nothing over the gap; restart every candidate from what is observed.
             self._a[:] = observed
