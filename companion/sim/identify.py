@@ -17,13 +17,18 @@ and the yaw rate follows its command clipped to ``yaw_rate_max_rad_s``.
 
 How it is fitted
 ----------------
-The four lateral parameters minimise the one-step prediction error of the measured horizontal
-acceleration vector (``(v[k+1] - v[k]) / dt`` against the model's ``dv / dt`` from the measured
-``v[k]``), a nonlinear least-squares problem in closed form per sample (vectorised, no
-simulation), solved by :func:`scipy.optimize.least_squares` from several starting delays. The
-fit quality is the variance of the measured lateral acceleration the model explains
-(``1 - var(residual) / var(measured)``) both one step ahead and in a free run of the model from
-the commands alone (:func:`simulate_velocity`), and the residual RMS of each.
+The measured velocity is smoothed (zero-phase Savitzky-Golay, :data:`SMOOTH_S`) and differenced.
+The parameters minimise the **free-run** error of the horizontal acceleration vector: the model
+driven by the commands alone (:func:`simulate`, restarted from the measurement after each gap in
+the setpoint stream), its output passed through the same smoother, against the measurement; a
+nonlinear least-squares problem solved by :func:`scipy.optimize.least_squares`, first for the
+first-order model, then with the second lag ``accel_lag_s`` free. The second-order model is kept
+only if it cuts the residual by :data:`SECOND_ORDER_GAIN` of itself and by
+:data:`SECOND_ORDER_GAIN_ABS` of the lateral acceleration's RMS. The fit quality is the variance
+of the measured lateral acceleration the model explains (``1 - var(residual) / var(measured)``)
+one step ahead (each step from the measured velocity, and acceleration for the second-order
+model, where the figure is therefore close to 1 by construction) and in the free run, and the
+residual RMS of each.
 
 A parameter is *identified* when its 1-sigma standard error (from the Jacobian at the optimum)
 is under :data:`MAX_RELATIVE_SE` of its value and the log excites it: the acceleration limit
@@ -137,9 +142,8 @@ def _unit_lateral(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def lateral_m_s2(vel_ne_m_s: np.ndarray, acc_ne_m_s2: np.ndarray) -> np.ndarray:
-    """Lateral acceleration (positive to the left of the velocity, i.e. turning anticlockwise in
-    NE seen from above... in NED a left turn is anticlockwise from above): ``(v x a) / |v|`` with
-    the sign of a left turn, NE components."""
+    """Lateral acceleration, ``(v x a) / |v|`` with NE components, positive to the left of the
+    velocity (a left turn: anticlockwise seen from above)."""
     lat, _ = _unit_lateral(vel_ne_m_s)
     return np.sum(lat * acc_ne_m_s2, axis=-1)
 
