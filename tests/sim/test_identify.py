@@ -190,3 +190,23 @@ def test_a_log_without_setpoints_is_refused_in_one_line(tmp_path, capsys):
     code = main(["identify", str(empty)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "SET_POSITION_TARGET_LOCAL_NED" in err[0]
+
+
+def test_the_written_vehicle_block_is_accepted_by_a_mission_and_by_the_mock(tmp_path):
+    from companion.cli.identify import vehicle_block_text
+    from companion.mission import load_mission
+    from sitl_mock.cli import load_vehicle_model
+
+    model = VehicleModel(a_max_m_s2=2.43, delay_s=0.173, lag_s=0.457, speed_sag_s=0.049, yaw_rate_max_deg_s=60.6)
+    text = vehicle_block_text(model, {"yaw_rate_max_deg_s": "never saturated"}, "flight.tlog")
+    block = tmp_path / "vehicle.yaml"
+    block.write_text(text)
+    mission = tmp_path / "m.yaml"
+    mission.write_text((ROOT / "missions" / "racetrack_predictive.yaml").read_text() + text)
+    loaded = load_mission(mission)
+    assert loaded.vehicle == model
+    # the guidance plans within it: lag plus dead time, and never beyond its limit
+    assert loaded.guidance.rollout_tau_s == pytest.approx(0.457 + 0.173)
+    assert loaded.guidance.a_max_m_s2 == pytest.approx(2.43)
+    assert loaded.guidance.adapt_model
+    assert load_vehicle_model(str(block))["lag_s"] == pytest.approx(0.457)
