@@ -15,7 +15,44 @@ import threading
 
 from sitl_mock.autopilot import MockAutopilot, MockConfig
 from sitl_mock.links import load_signing_key, parse_link
+from sitl_mock.personality import VEHICLE_MODEL_KEYS, Personality
 from sitl_mock.vehicle import VehicleParams
+
+# Keys of the vehicle: block a model must give (the others default as in a mission).
+_REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
+_MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "speed_sag_s": 0.0, "yaw_rate_max_deg_s": 90.0}
+
+
+def load_vehicle_model(path: str) -> dict[str, float]:
+    """The ``vehicle:`` block of a YAML file (``companion identify -o`` output or a mission), read
+    here on the mock's side (the mock shares no code with the companion). ValueError, one line."""
+    import yaml
+
+    try:
+        with open(path, encoding="utf-8") as handle:
+            doc = yaml.safe_load(handle)
+    except OSError as err:
+        raise ValueError(f"--vehicle-model {path}: cannot read: {err.strerror}") from None
+    except yaml.YAMLError as err:
+        raise ValueError(f"--vehicle-model {path}: not YAML: {str(err).splitlines()[0]}") from None
+    block = doc.get("vehicle") if isinstance(doc, dict) else None
+    if not isinstance(block, dict):
+        raise ValueError(f"--vehicle-model {path}: expected a mapping with a vehicle: block")
+    unknown = sorted(set(block) - set(VEHICLE_MODEL_KEYS))
+    if unknown:
+        raise ValueError(f"--vehicle-model {path}: vehicle.{unknown[0]}: unknown key; expected one of "
+                         f"{', '.join(VEHICLE_MODEL_KEYS)}")
+    model = dict(_MODEL_DEFAULTS)
+    for key in VEHICLE_MODEL_KEYS:
+        if key not in block:
+            if key in _REQUIRED_MODEL_KEYS:
+                raise ValueError(f"--vehicle-model {path}: vehicle.{key}: missing; expected a number")
+            continue
+        value = block[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise ValueError(f"--vehicle-model {path}: vehicle.{key}: expected a finite number >= 0, got {value!r}")
+        model[key] = float(value)
+    return model
 
 
 def _floats(text: str, count: int, option: str) -> tuple[float, ...]:
@@ -54,8 +91,12 @@ def build_parser() -> argparse.ArgumentParser:
     add("--pace-lead-s", type=float, default=None, metavar="S",
         help="hold simulated time while the setpoint client's newest time_boot_ms lags by more than S "
              "(faster-than-real-time runs on a busy machine; off by default)")
-    add("--tau-vel-s", type=float, default=0.3,
-        help="velocity response time constant, s (copter, rover; plane climb rate) (default 0.3)")
+    add("--vehicle-model", default=None, metavar="FILE",
+        help="YAML file with a vehicle: block (companion identify -o, or a mission): the copter's "
+             "delay, lag, acceleration limit, speed sag and yaw-rate limit (default for a copter: the "
+             "model identified from the chosen autopilot's real firmware, docs/vehicle_model.md)")
+    add("--tau-vel-s", type=float, default=None,
+        help="velocity lag (default: the vehicle model's; 0.3 for planes and rovers)")
     add("--tau-yaw-rate-s", type=float, default=0.3,
         help="yaw-rate response time constant, s (copter, rover) (default 0.3)")
     add("--tau-roll-s", type=float, default=0.5, help="plane roll time constant")
@@ -84,12 +125,22 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
     start_ned = _floats(args.start_ned, 2, "--start-ned")
     wind = _floats(args.wind_ned_m_s, 2, "--wind-ned-m-s")
     origin = _floats(args.origin, 3, "--origin") if args.origin else None
-    a_max = args.a_max_m_s2 if args.a_max_m_s2 is not None else (3.0 if args.vehicle == "rover" else 5.0)
-    yaw_max = args.yaw_rate_max_deg_s if args.yaw_rate_max_deg_s is not None else (
-        120.0 if args.vehicle == "rover" else 90.0)
+    if args.vehicle_model is not None:
+        model = load_vehicle_model(args.vehicle_model)
+    else:
+        model = Personality(args.autopilot, args.vehicle).default_vehicle_model
+    if model is None:  # plane, rover: the generic model
+        model = {"a_max_m_s2": 3.0 if args.vehicle == "rover" else 5.0, "lag_s": 0.3, "delay_s": 0.0,
+                 "accel_lag_s": 0.0, "speed_sag_s": 0.0,
+                 "yaw_rate_max_deg_s": 120.0 if args.vehicle == "rover" else 90.0}
+    # An explicit option overrides the model's value.
+    a_max = args.a_max_m_s2 if args.a_max_m_s2 is not None else model["a_max_m_s2"]
+    yaw_max = args.yaw_rate_max_deg_s if args.yaw_rate_max_deg_s is not None else model["yaw_rate_max_deg_s"]
+    tau_vel = args.tau_vel_s if args.tau_vel_s is not None else model["lag_s"]
     try:
         vehicle = VehicleParams(
-            kind=args.vehicle, tau_vel_s=args.tau_vel_s, tau_yaw_rate_s=args.tau_yaw_rate_s, a_max_m_s2=a_max,
+            kind=args.vehicle, tau_vel_s=tau_vel, tau_yaw_rate_s=args.tau_yaw_rate_s, a_max_m_s2=a_max,
+            delay_s=model["delay_s"], accel_lag_s=model["accel_lag_s"], speed_sag_s=model["speed_sag_s"],
             yaw_rate_max_rad_s=math.radians(yaw_max), v_max_m_s=5.0 if args.vehicle == "rover" else 12.0,
             airspeed_cruise_m_s=args.airspeed_m_s, airspeed_min_m_s=args.airspeed_min_m_s,
             airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,

@@ -84,6 +84,20 @@ ARDUPILOT_STREAM_GROUPS = {
 }
 
 
+# How each autopilot's copter flies velocity + yaw-rate setpoints, identified with
+# ``companion identify`` from the real firmware's identification flights (docs/vehicle_model.md):
+# ArduCopter SITL (ArduPilot master, default parameters, GUIDED) and PX4 v1.18 SIH (OFFBOARD). The
+# keys are those of the ``vehicle:`` block (``--vehicle-model``). PX4's yaw rate never saturated
+# in its flight: 92 deg/s is the most it was asked for and flew, a lower bound of its limit.
+VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "speed_sag_s", "yaw_rate_max_deg_s")
+IDENTIFIED_COPTER_MODELS = {
+    "ardupilot": {"a_max_m_s2": 2.43, "delay_s": 0.173, "lag_s": 0.457, "accel_lag_s": 0.0, "speed_sag_s": 0.049,
+                  "yaw_rate_max_deg_s": 60.6},
+    "px4": {"a_max_m_s2": 4.46, "delay_s": 0.049, "lag_s": 0.602, "accel_lag_s": 0.0, "speed_sag_s": 0.258,
+            "yaw_rate_max_deg_s": 92.3},
+}
+
+
 @dataclass(frozen=True)
 class Mode:
     """One flight mode: its name as ground stations show it, its wire encoding and its behaviour."""
@@ -176,6 +190,8 @@ class Personality:
         self.rtl_mode = self.mode_for_behaviour("rtl")
         self.takeoff_mode = self.mode_for_behaviour("takeoff")
         self.streams_by_default = self.is_px4
+        # The vehicle model a copter flies unless told otherwise (None: the generic model).
+        self.default_vehicle_model = dict(IDENTIFIED_COPTER_MODELS[autopilot]) if vehicle == "copter" else None
 
     def mode_named(self, name: str) -> Mode | None:
         """The mode with this name, or None."""

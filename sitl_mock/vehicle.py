@@ -11,7 +11,10 @@ Copter
     ``tau_vel_s`` (exact discretisation, so a step reaches 63.2 % after one time constant), with
     the horizontal and the vertical acceleration each limited to ``a_max_m_s2``. The yaw rate follows
     the commanded yaw rate through a first-order lag ``tau_yaw_rate_s``; the command is clipped to
-    ``yaw_rate_max_rad_s``. A multicopter's velocity controller holds ground velocity, so a steady
+    ``yaw_rate_max_rad_s``. Optionally (docs/vehicle_model.md, the model ``companion identify``
+    fits): every command acts ``delay_s`` late, the horizontal speed command shrinks in turns by
+    ``speed_sag_s`` times the lateral acceleration, and the horizontal acceleration follows the one
+    the velocity loop asks for through a second lag ``accel_lag_s``. A multicopter's velocity controller holds ground velocity, so a steady
     wind has no lasting effect on the track and is not modelled for copters.
 Plane
     Constant airspeed (never below ``airspeed_min_m_s``), heading turning at ``g tan(roll) / V``
@@ -33,6 +36,7 @@ from __future__ import annotations
 
 import math
 import random
+from collections import deque
 from dataclasses import dataclass, field
 
 GRAVITY_M_S2 = 9.80665
@@ -68,6 +72,13 @@ class VehicleParams:
         Time constant of the yaw-rate response (copter, rover).
     a_max_m_s2 : float
         Acceleration limit, horizontal and vertical separately.
+    delay_s : float
+        Copter, rover: dead time between a command and the inner loop acting on it.
+    accel_lag_s : float
+        Copter, rover: time constant of a second lag on the horizontal acceleration (0: none).
+    speed_sag_s : float
+        Copter, rover: the horizontal speed command shrinks by this times the lateral acceleration
+        (m/s per m/s^2), as real position controllers slow down in turns.
     yaw_rate_max_rad_s : float
         Largest yaw rate the inner loop will command.
     v_max_m_s : float
@@ -90,6 +101,9 @@ class VehicleParams:
     tau_vel_s: float = 0.3
     tau_yaw_rate_s: float = 0.3
     a_max_m_s2: float = 5.0
+    delay_s: float = 0.0
+    accel_lag_s: float = 0.0
+    speed_sag_s: float = 0.0
     yaw_rate_max_rad_s: float = math.radians(90.0)
     v_max_m_s: float = 12.0
     climb_rate_m_s: float = 2.5
@@ -112,7 +126,8 @@ class VehicleParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
-        for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m"):
+        for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
+                     "speed_sag_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -174,7 +189,22 @@ class VehicleModel:
             self.state.airspeed_m_s = params.airspeed_cruise_m_s
             self._set_plane_ground_velocity(0.0)
         self._rng = random.Random(params.seed)
+        self._cmd_queue: deque = deque()
         self._noise_ned_m = (0.0, 0.0, 0.0)
+
+    def _delayed(self, vel_cmd_ned_m_s, yaw_rate_cmd_rad_s):
+        """The command as the vehicle sees it ``delay_s`` after it was given (dead time)."""
+        if self.params.delay_s <= 0.0:
+            return vel_cmd_ned_m_s, yaw_rate_cmd_rad_s
+        queue = self._cmd_queue
+        queue.append((self.state.t_s, tuple(vel_cmd_ned_m_s), yaw_rate_cmd_rad_s))
+        due = self.state.t_s - self.params.delay_s + 1e-9
+        while len(queue) > 1 and queue[1][0] <= due:
+            queue.popleft()
+        if queue[0][0] > due:  # no command old enough yet: carry on as now
+            return tuple(self.state.vel_ned_m_s), self.state.yaw_rate_rad_s
+        _, vel, yaw_rate = queue[0]
+        return vel, yaw_rate
 
     def _draw_noise(self) -> None:
         """Draw this step's position noise, so a report depends on the step, not on how often it is read."""
@@ -210,10 +240,20 @@ class VehicleModel:
             s.t_s += dt_s
             self._draw_noise()
             return
+        vel_cmd_ned_m_s, yaw_rate_cmd_rad_s = self._delayed(vel_cmd_ned_m_s, yaw_rate_cmd_rad_s)
         k = _lag_gain(dt_s, p.tau_vel_s)
         v = s.vel_ned_m_s
-        dvx = (vel_cmd_ned_m_s[0] - v[0]) * k + acc_ff_ned_m_s2[0] * dt_s
-        dvy = (vel_cmd_ned_m_s[1] - v[1]) * k + acc_ff_ned_m_s2[1] * dt_s
+        cx, cy = vel_cmd_ned_m_s[0], vel_cmd_ned_m_s[1]
+        if p.speed_sag_s > 0.0:
+            # Speed sag: the horizontal command shrinks by speed_sag_s x |lateral acceleration|.
+            c_h = math.hypot(cx, cy)
+            speed = math.hypot(v[0], v[1])
+            if c_h > 1e-9 and speed > 1e-9:
+                a_lat = abs(v[0] * s.acc_ned_m_s2[1] - v[1] * s.acc_ned_m_s2[0]) / speed
+                scale = max(0.0, 1.0 - p.speed_sag_s * a_lat / c_h)
+                cx, cy = cx * scale, cy * scale
+        dvx = (cx - v[0]) * k + acc_ff_ned_m_s2[0] * dt_s
+        dvy = (cy - v[1]) * k + acc_ff_ned_m_s2[1] * dt_s
         dvz = 0.0 if p.kind == "rover" else (vel_cmd_ned_m_s[2] - v[2]) * k + acc_ff_ned_m_s2[2] * dt_s
         dv_max = p.a_max_m_s2 * dt_s
         dv_h = math.hypot(dvx, dvy)
@@ -221,6 +261,12 @@ class VehicleModel:
             dvx *= dv_max / dv_h
             dvy *= dv_max / dv_h
         dvz = max(-dv_max, min(dv_max, dvz))
+        if p.accel_lag_s > 0.0:
+            # Second order: the horizontal acceleration follows the one asked for through a lag.
+            ka = _lag_gain(dt_s, p.accel_lag_s)
+            ax, ay = s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]
+            dvx = (ax + (dvx / dt_s - ax) * ka) * dt_s
+            dvy = (ay + (dvy / dt_s - ay) * ka) * dt_s
         s.acc_ned_m_s2 = [dvx / dt_s, dvy / dt_s, dvz / dt_s]
         v_new = [v[0] + dvx, v[1] + dvy, 0.0 if p.kind == "rover" else v[2] + dvz]
         # Trapezoidal position update: exact for constant acceleration over the step.

@@ -123,3 +123,15 @@ def test_mock_and_companion_share_nothing_but_the_wire():
 def test_pymavlink_only_in_io_and_mock():
     users = {p for p, (_, libraries) in RULES.items() if "pymavlink" in libraries}
     assert users == {"companion.io", "sitl_mock"}
+
+
+def test_vehicle_identification_is_maths_and_its_tlog_reading_an_adapter():
+    # The fit (companion.sim.identify) sees arrays only; reading the tlog is companion.io.idlog's
+    # job, and the command wires the two.
+    fit = imported_modules(ROOT / "companion" / "sim" / "identify.py")
+    assert {n for n in fit if n.startswith("companion")} <= {"companion.guidance.types"}
+    assert not {n.split(".")[0] for n in fit} & (FORBIDDEN_STDLIB | {"pymavlink", "yaml"})
+    adapter = imported_modules(ROOT / "companion" / "io" / "idlog.py")
+    assert "companion.sim.identify" in adapter and "companion.io.logread" in adapter
+    command = imported_modules(ROOT / "companion" / "cli" / "identify.py")
+    assert not {n for n in command if n.startswith("companion.io.logread") or n.split(".")[0] == "pymavlink"}

@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "companion.cli.replay",
     "companion.cli.log",
     "companion.cli.bench",
+    "companion.cli.identify",
 )
 
 

@@ -52,7 +52,7 @@ def run(args) -> int:
     from companion.guidance.two_phase import TwoPhaseGuidance
     from companion.mission import load_mission
     from companion.guidance.profiled import ProfiledGuidance
-    from companion.sim.simulator import simulate
+    from companion.sim.simulator import LagModel, simulate
 
     mission = load_mission(args.mission)
     params = mission.guidance
@@ -75,9 +75,10 @@ def run(args) -> int:
     law = TwoPhaseGuidance(path, params)
     profile = mission.profile if mission.profile is not None and not mission.profile.constant_speed else None
     flown = ProfiledGuidance(law, profile) if profile else law
+    model = LagModel.from_vehicle(mission.vehicle) if mission.vehicle is not None else None
     with SimProgress(_expected_s(path, start, args.t_max_s), f"sim {mission.name}") as progress:
-        result = simulate(path, _Reporting(flown, progress), start, params, t_max_s=args.t_max_s,
-                          profile=profile)
+        result = simulate(path, _Reporting(flown, progress), start, params, model=model,
+                          t_max_s=args.t_max_s, profile=profile)
     metrics = result.metrics
     summary = {
         "mission": mission.name, "method": params.method,

@@ -39,6 +39,11 @@ its feedback core and adds:
    in time. On the path (d0, d0' of millimetres) the reference is millimetres too and the cost is
    the plain ``d^2``. See :func:`capture_reference`.
 
+7. **A model monitor** (``adapt_model``, on with a mission's ``vehicle:`` block): when the
+   lateral acceleration the vehicle flies departs from the model (more lag, less acceleration),
+   the law plans with the candidate model that explains it, or drops the plan and flies its
+   feedback core; see :class:`ModelMonitor`.
+
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does. An
 open path is continued straight past its end, as the baselines do.
@@ -90,6 +95,9 @@ class PredictiveParams:
     capture_tc_scale : time constant of the capture reference (see :func:`capture_reference`)
         as a multiple of ``lambda_s4 ** 0.25`` (s per s), >= 0; 0 (or lambda 0) penalises the
         cross-track error itself, as the law did before the reference.
+    adapt_model : watch the lateral acceleration the vehicle actually flies and, when it departs
+        from the model (more lag, less acceleration), plan with the candidate model that explains
+        it, or fall back to the feedback core (see :class:`ModelMonitor`).
     """
 
     lambda_s4: float = DEFAULT_LAMBDA_S4
@@ -107,6 +115,7 @@ class PredictiveParams:
     wind_y_m_s: float = 0.0
     curvature_ff: float = 1.0
     capture_tc_scale: float = 0.6
+    adapt_model: bool = False
 
     def __post_init__(self) -> None:
         def number(name: str) -> float:
@@ -115,6 +124,8 @@ class PredictiveParams:
                 raise ValueError(f"{name}: expected a number, got {value!r}")
             return float(value)
 
+        if not isinstance(self.adapt_model, bool):
+            raise ValueError(f"adapt_model: expected true or false, got {self.adapt_model!r}")
         if not 0.0 <= number("curvature_ff") <= 1.0:
             raise ValueError(f"curvature_ff: expected a number in [0, 1], got {self.curvature_ff!r}")
         for name in ("lambda_s4", "lag_s", "capture_tc_scale"):
@@ -291,6 +302,106 @@ def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s
     return a, l_eff, gx, gy, d
 
 
+# Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
+MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
+MONITOR_LAG_FLOOR_S = 0.1  # the candidates of a nominal lag of 0 are multiples of this
+MONITOR_A_MAX_FACTORS = (1.0, 0.7, 0.5)
+MONITOR_GAP_FACTOR = 3.0  # a step this many times the usual one: ticks were skipped or coasted
+MONITOR_OBS_TC_S = 0.2  # low-pass of the observed (and each candidate's) lateral acceleration
+MONITOR_ERR_TC_S = 4.0  # averaging time of each candidate's squared prediction error
+MONITOR_WARMUP_S = 3.0  # no switching before this much flight
+MONITOR_SWITCH_RATIO = 0.6  # a candidate replaces the model in use when its error is below this share
+MONITOR_FALLBACK_SHARE = 0.5  # unexplained share of the observed acceleration that drops the plan
+
+
+class ModelMonitor:
+    """Which first-order model (lag, limit) explains the lateral acceleration the vehicle flies.
+
+    A bank of candidate models (:data:`MONITOR_LAG_FACTORS` x :data:`MONITOR_A_MAX_FACTORS` times
+    the nominal lag and limit) each runs the law's own commands through its lag and limit; the
+    observed lateral acceleration ``V dcourse/dt`` and every candidate's output go through the
+    same low-pass (:data:`MONITOR_OBS_TC_S`), and each candidate's squared error is averaged over
+    :data:`MONITOR_ERR_TC_S`. The model in use switches to the best candidate when its error is
+    under :data:`MONITOR_SWITCH_RATIO` of the one in use (hysteresis; the nominal model to begin
+    with). Over a gap in the ticks (skipped, or coasted by the flight loop while a step ran
+    late: the vehicle then flew setpoints the law did not choose) nothing is compared and the
+    candidates restart from the observation. ``unexplained`` is the error of the model in use over the observed acceleration's
+    mean square: above :data:`MONITOR_FALLBACK_SHARE` no candidate stands for the vehicle and the
+    law flies its feedback core alone (no plan). Pure arithmetic on the inputs: deterministic.
+    """
+
+    def __init__(self, lag_s: float, a_max_m_s2: float):
+        base = lag_s if lag_s > 0.0 else MONITOR_LAG_FLOOR_S
+        lags = [f * base for f in MONITOR_LAG_FACTORS]
+        if lag_s <= 0.0:
+            lags[1] = 0.0  # the nominal (ideal) model itself
+        limits = [f * a_max_m_s2 for f in MONITOR_A_MAX_FACTORS] if a_max_m_s2 < math.inf else [math.inf]
+        grid_lag, grid_lim = np.meshgrid(np.array(lags), np.array(limits), indexing="ij")
+        self.lags = grid_lag.ravel()
+        self.limits = grid_lim.ravel()
+        self.current = int(MONITOR_LAG_FACTORS.index(1.0) * len(limits))  # nominal lag, full limit
+        n = self.lags.size
+        self._a = np.zeros(n)
+        self._a_f = np.zeros(n)
+        self._err = np.zeros(n)
+        self._obs_f = 0.0
+        self._obs_ms = 0.0
+        self._prev: tuple[float, float] | None = None  # (t_s, course_rad)
+        self._dt_usual: float | None = None
+        self._t0: float | None = None
+        self.unexplained = 0.0
+
+    @property
+    def lag_s(self) -> float:
+        return float(self.lags[self.current])
+
+    @property
+    def a_max_m_s2(self) -> float:
+        return float(self.limits[self.current])
+
+    def update(self, t_s: float, course_rad: float, speed_m_s: float, last_cmd_m_s2: float) -> None:
+        """Advance with the state of this tick and the command held since the previous one."""
+        if self._t0 is None:
+            self._t0 = t_s
+        prev, self._prev = self._prev, (t_s, course_rad)
+        if prev is None or not t_s > prev[0]:
+            return
+        dt = t_s - prev[0]
+        dpsi = math.remainder(course_rad - prev[1], 2.0 * math.pi)
+        observed = max(speed_m_s, MIN_SPEED_M_S) * dpsi / dt
+        # the usual step: a running mean (tick times jitter with the samples' arrival)
+        usual = self._dt_usual = dt if self._dt_usual is None else self._dt_usual + 0.05 * (dt - self._dt_usual)
+        if dt > MONITOR_GAP_FACTOR * usual:
+            # Ticks were skipped or coasted: the vehicle flew setpoints this law did not choose.
+            # Compare nothing over the gap; restart every candidate from what is observed.
+            self._a[:] = observed
+            self._a_f[:] = observed
+            self._obs_f = observed
+            return
+        beta = 1.0 - math.exp(-dt / MONITOR_OBS_TC_S)
+        gamma = 1.0 - math.exp(-dt / MONITOR_ERR_TC_S)
+        with np.errstate(divide="ignore", over="ignore"):
+            alpha = np.where(self.lags > 0.0, 1.0 - np.exp(-dt / np.maximum(self.lags, 1e-9)), 1.0)
+        target = np.clip(last_cmd_m_s2, -self.limits, self.limits)
+        # the course change over the tick is the mean of the acceleration over it: compare means
+        a_mean = self._a + (target - self._a) * alpha * 0.5
+        self._a += (target - self._a) * alpha
+        self._a_f += (a_mean - self._a_f) * beta
+        self._obs_f += (observed - self._obs_f) * beta
+        self._err += ((self._obs_f - self._a_f) ** 2 - self._err) * gamma
+        self._obs_ms += (self._obs_f ** 2 - self._obs_ms) * gamma
+        if t_s - self._t0 < MONITOR_WARMUP_S:
+            return
+        best = int(np.argmin(self._err))
+        if self._err[best] < MONITOR_SWITCH_RATIO * self._err[self.current]:
+            self.current = best
+        self.unexplained = float(self._err[self.current] / (self._obs_ms + 0.05))
+
+    @property
+    def fallback(self) -> bool:
+        return self.unexplained > MONITOR_FALLBACK_SHARE
+
+
 class PredictiveGuidance:
     """The predictive law on a :class:`~companion.geometry.paths.Path`; see the module docstring.
 
@@ -322,6 +433,10 @@ class PredictiveGuidance:
         self._next_reopt_t = -math.inf
         self._win: _Window | None = None
         self.reoptimisations = 0
+        # The vehicle model the law plans with: the nominal one, or what the monitor found.
+        self._lag_s = p.lag_s
+        self._a_max = p.a_max_m_s2
+        self.monitor = ModelMonitor(p.lag_s, p.a_max_m_s2) if p.adapt_model else None
 
     def start_projection_at(self, s_m: float) -> None:
         """Seed the projection (e.g. at the path start when a mid-course phase hands over)."""
@@ -329,7 +444,7 @@ class PredictiveGuidance:
 
     # -- the vehicle model the law believes ---------------------------------------------------
     def _alpha(self, dt_s: float) -> float:
-        tau = self.params.lag_s
+        tau = self._lag_s
         return 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt_s / tau)
 
     def _air(self, state: VehicleState) -> tuple[float, float]:
@@ -366,8 +481,8 @@ class PredictiveGuidance:
             gx = v_air * np.cos(h) + wx
             gy = v_air * np.sin(h) + wy
             u, _, _, _, d = pursuit_command(win, x, y, np.arctan2(gy, gx), np.hypot(gx, gy), look_m, math.inf,
-                                            p.curvature_ff, p.lag_s)
-            u = np.minimum(np.maximum(u + plans[:, self._seg_of_step[n]], -p.a_max_m_s2), p.a_max_m_s2)
+                                            p.curvature_ff, self._lag_s)
+            u = np.minimum(np.maximum(u + plans[:, self._seg_of_step[n]], -self._a_max), self._a_max)
             res[:, 2 * n] = (d if d_ref_m is None else d - d_ref_m[n]) * sq_dt
             res[:, 2 * n + 1] = u * sq_lam_dt
             a_act += (u - a_act) * alpha
@@ -470,6 +585,13 @@ class PredictiveGuidance:
         if self._last_t is not None:  # advance the lag model over the last tick with the last command
             self._a_hat += (self._last_cmd - self._a_hat) * self._alpha(max(t_s - self._last_t, 0.0))
         self._last_t = t_s
+        monitor = self.monitor
+        if monitor is not None:
+            monitor.update(t_s, state.course_rad, state.speed_m_s, self._last_cmd)
+            self._lag_s = monitor.lag_s
+            self._a_max = min(monitor.a_max_m_s2, p.a_max_m_s2)
+            if monitor.fallback:
+                self._plan = np.zeros(p.plan_segments)
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
         self._s_hint = f.s_m
         reoptimised = False
@@ -480,11 +602,13 @@ class PredictiveGuidance:
         a, l_eff, gx, gy, _ = pursuit_command(
             self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
             np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff,
-            p.lag_s)
+            self._lag_s)
         seg = min(int((t_s - self._plan_t0) / self._segment_s), p.plan_segments - 1)
-        correction = float(self._plan[seg])
-        a_cmd = min(max(float(a[0]) + correction, -p.a_max_m_s2), p.a_max_m_s2)
+        correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
+        a_cmd = min(max(float(a[0]) + correction, -self._a_max), self._a_max)
         self._last_cmd = a_cmd
-        return frame_output(self.path, f, a_cmd, (float(gx[0]), float(gy[0])),
-                            {"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat},
-                            reoptimised)
+        extra = {"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat}
+        if monitor is not None:
+            extra.update({"model_lag_s": self._lag_s, "model_a_max_m_s2": self._a_max,
+                          "model_unexplained": monitor.unexplained})
+        return frame_output(self.path, f, a_cmd, (float(gx[0]), float(gy[0])), extra, reoptimised)

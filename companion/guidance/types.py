@@ -54,6 +54,9 @@ class GuidanceParams:
     a_max_m_s2 : ``predictive`` only: the vehicle's lateral-acceleration limit (> 0, ``math.inf``
         for none); every command is clipped to it and the rollouts know it.
     wind_x_m_s, wind_y_m_s : ``predictive`` only: known steady wind (ENU) its rollouts assume.
+    adapt_model : ``predictive`` only: watch the flown lateral acceleration and re-plan with the
+        model that explains it, or fall back to the feedback core (on when the mission has a
+        ``vehicle:`` block; :class:`companion.guidance.predictive.ModelMonitor`).
     """
 
     method: str = PAPER_METHOD
@@ -70,8 +73,11 @@ class GuidanceParams:
     a_max_m_s2: float = math.inf
     wind_x_m_s: float = 0.0
     wind_y_m_s: float = 0.0
+    adapt_model: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.adapt_model, bool):
+            raise ValueError(f"adapt_model: expected true or false, got {self.adapt_model!r}")
         if self.method not in METHODS:
             raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
         if self.midcourse_trigger not in MIDCOURSE_TRIGGERS:
@@ -94,6 +100,57 @@ class GuidanceParams:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+
+
+#: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
+VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "speed_sag_s", "yaw_rate_max_deg_s")
+
+
+@dataclass(frozen=True)
+class VehicleModel:
+    """How the vehicle flies velocity + yaw-rate setpoints (docs/vehicle_model.md).
+
+    The horizontal velocity follows the commanded one seen ``delay_s`` late, its speed reduced in
+    turns by ``speed_sag_s`` times the lateral acceleration, through a first-order lag of time
+    constant ``lag_s``, its acceleration limited to ``a_max_m_s2``; the yaw rate is limited to
+    ``yaw_rate_max_deg_s``. The mission's ``vehicle:`` block, ``companion identify``'s output and
+    the mock's ``--vehicle-model`` file share these keys. The defaults are the mock's historical
+    copter (0.3 s lag, 5 m/s^2, no delay, no sag, 90 deg/s).
+
+    Attributes
+    ----------
+    a_max_m_s2 : horizontal (in a turn at constant speed: lateral) acceleration limit, > 0.
+    delay_s : dead time from a setpoint sent to the vehicle's response, >= 0.
+    lag_s : time constant of the first-order velocity response, >= 0.
+    accel_lag_s : time constant of a second lag, on the acceleration the velocity loop asks for
+        (0: the first-order model), >= 0.
+    speed_sag_s : speed lost per unit of lateral acceleration in a turn (m/s per m/s^2), >= 0.
+    yaw_rate_max_deg_s : yaw-rate limit, > 0.
+    """
+
+    a_max_m_s2: float = 5.0
+    delay_s: float = 0.0
+    lag_s: float = 0.3
+    accel_lag_s: float = 0.0
+    speed_sag_s: float = 0.0
+    yaw_rate_max_deg_s: float = 90.0
+
+    def __post_init__(self) -> None:
+        for name in VEHICLE_MODEL_KEYS:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ValueError(f"vehicle.{name}: expected a finite number, got {value!r}")
+            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s")
+            if value < 0 or (strict and value == 0):
+                raise ValueError(f"vehicle.{name}: expected a number {'>' if strict else '>='} 0, got {value!r}")
+
+    def rollout_tau_s(self) -> float:
+        """The single first-order time constant that best stands for lag plus delay in the
+        guidance's rollouts (a dead time d followed by lags tau_1, tau_2 has the mean delay d + tau_1 + tau_2)."""
+        return self.lag_s + self.delay_s + self.accel_lag_s
+
+    def as_dict(self) -> dict[str, float]:
+        return {name: float(getattr(self, name)) for name in VEHICLE_MODEL_KEYS}
 
 
 @dataclass(frozen=True)

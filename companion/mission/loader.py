@@ -27,7 +27,7 @@ from companion.errors import MissionError
 from companion.geometry import geodetic
 from companion.geometry.paths import Path, function_path, parametric_path, waypoint_path
 from companion.geometry.profile import PathProfile, ProfileLimits, build_profile, knots_table
-from companion.guidance.types import GuidanceParams
+from companion.guidance.types import VEHICLE_MODEL_KEYS, GuidanceParams, VehicleModel
 from companion.mission import schema
 from companion.mission.expressions import ExpressionError, compile_expression
 from companion.mission.model import GeodeticOrigin, Mission, StartState
@@ -233,7 +233,14 @@ class _Builder:
             origin=origin,
             warnings=tuple(self.warnings),
             profile=profile,
+            vehicle=self.build_vehicle(),
         )
+
+    def build_vehicle(self) -> VehicleModel | None:
+        v = self.doc.get("vehicle")
+        if v is None or any(v.get(k) is None for k in VEHICLE_MODEL_KEYS):
+            return None  # absent, or already reported by the schema
+        return VehicleModel(**{k: v[k] for k in VEHICLE_MODEL_KEYS})
 
     def build_origin(self) -> GeodeticOrigin | None:
         origin = self.doc.get("origin")
@@ -272,6 +279,14 @@ class _Builder:
         values["lambda_s4"] = g["lambda_s4"]
         # Absent: no limit. (An unusable value is None here too, but the schema reported it.)
         values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
+        vehicle = self.doc.get("vehicle")
+        if vehicle is not None and None not in (vehicle.get("a_max_m_s2"), vehicle.get("lag_s")):
+            # A vehicle model: the rollouts assume its lag (plus its dead time) and the law never
+            # plans beyond its acceleration limit (docs/vehicle_model.md).
+            model = VehicleModel(**{k: vehicle[k] for k in VEHICLE_MODEL_KEYS})
+            values["rollout_tau_s"] = model.rollout_tau_s()
+            values["a_max_m_s2"] = min(float(values["a_max_m_s2"]), model.a_max_m_s2)
+            values["adapt_model"] = True
         try:
             return GuidanceParams(**values)
         except ValueError as err:  # the schema's ranges should make this unreachable

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 from companion.geometry.paths import Path
 from companion.geometry.profile import PathProfile
-from companion.guidance.types import GuidanceParams
+from companion.guidance.types import GuidanceParams, VehicleModel
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
 
@@ -69,6 +69,7 @@ class Mission:
     profile : the altitude and speed along the path
         (:class:`companion.geometry.profile.PathProfile`), or None when both are one number.
         ``altitude_m`` and ``speed_m_s`` are then the profile's values at the path start.
+    vehicle : the ``vehicle:`` block (:class:`companion.guidance.types.VehicleModel`), or None.
     """
 
     name: str
@@ -84,6 +85,7 @@ class Mission:
     origin: GeodeticOrigin | None = None
     warnings: tuple[str, ...] = ()
     profile: PathProfile | None = None
+    vehicle: VehicleModel | None = None
 
     def __post_init__(self) -> None:
         if self.on_finish not in ON_FINISH:

@@ -352,6 +352,27 @@ MISSION = Object(
                 },
             ),
             "guidance tuning", default={}),
+        "vehicle": Field(
+            Object(
+                description="How the vehicle flies velocity setpoints (docs/vehicle_model.md), as "
+                            "`companion identify` writes it; the guidance plans within it and the "
+                            "simulator flies it.",
+                fields={
+                    "a_max_m_s2": Field(Number(exclusive_minimum=0, maximum=100), "horizontal (in a "
+                                        "turn: lateral) acceleration limit", required=True),
+                    "delay_s": Field(Number(minimum=0, maximum=5), "dead time from setpoint to "
+                                     "response", default=0.0),
+                    "lag_s": Field(Number(minimum=0, maximum=5), "time constant of the first-order "
+                                   "velocity response", required=True),
+                    "accel_lag_s": Field(Number(minimum=0, maximum=5), "time constant of a second "
+                                         "lag on the acceleration (0: first-order model)", default=0.0),
+                    "speed_sag_s": Field(Number(minimum=0, maximum=10), "speed lost in a turn per "
+                                         "unit of lateral acceleration (m/s per m/s^2)", default=0.0),
+                    "yaw_rate_max_deg_s": Field(Number(exclusive_minimum=0, maximum=3600),
+                                                "yaw-rate limit", default=90.0),
+                },
+            ),
+            "the vehicle model (absent: the guidance block's rollout_tau_s and a_max_m_s2 alone)"),
         "midcourse": Field(
             Object(
                 fields={

@@ -17,10 +17,11 @@ A guidance law is any object with ``step(t_s, VehicleState) -> GuidanceOutput``.
 Models
 ------
 - ideal (``model=None``): the achieved lateral acceleration equals the command (the paper).
-- :class:`LagModel`: the achieved acceleration follows the command, first saturated at
-  ``a_max_m_s2``, with a first-order lag of time constant ``tau_s`` (exact discretisation over a
-  tick; the turn rate used for the tick is the mean of the achieved acceleration over it), plus
-  a constant wind.
+- :class:`LagModel`: the achieved acceleration follows the command issued ``delay_s`` earlier
+  (rounded to whole ticks), first saturated at ``a_max_m_s2``, with a first-order lag of time
+  constant ``tau_s`` (exact discretisation over a tick; the turn rate used for the tick is the
+  mean of the achieved acceleration over it), plus a constant wind.
+  :meth:`LagModel.from_vehicle` builds it from a mission's ``vehicle:`` block.
 
 End of a run: the law reports ``finished`` (for :class:`TwoPhaseGuidance` on an open path, the
 look-ahead point reaching the path end), or ``t_max_s`` elapses (default: the time to fly three
@@ -35,19 +36,30 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from companion.geometry.paths import Path
-from companion.guidance.types import GuidanceParams, VehicleState
+from companion.guidance.types import GuidanceParams, VehicleModel, VehicleState
 from companion.sim.metrics import tracking_metrics
 
 
 @dataclass(frozen=True)
 class LagModel:
-    """First-order inner loop with saturation, and a constant wind (local ENU)."""
+    """First-order inner loop with saturation and a dead time, and a constant wind (local ENU)."""
 
     tau_s: float = 0.0
     a_max_m_s2: float = math.inf
     wind_enu_m_s: tuple[float, float] = (0.0, 0.0)
+    delay_s: float = 0.0
+
+    @classmethod
+    def from_vehicle(cls, vehicle: VehicleModel, wind_enu_m_s: tuple[float, float] = (0.0, 0.0)) -> "LagModel":
+        """The lateral part of a mission's ``vehicle:`` model: its lag, limit and dead time (a second
+        acceleration lag is folded into the lag, the speed sag left out: the simulator flies at
+        constant speed)."""
+        return cls(tau_s=vehicle.lag_s + vehicle.accel_lag_s, a_max_m_s2=vehicle.a_max_m_s2,
+                   wind_enu_m_s=wind_enu_m_s, delay_s=vehicle.delay_s)
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.delay_s) and self.delay_s >= 0):
+            raise ValueError(f"delay_s: expected a finite number >= 0, got {self.delay_s!r}")
         if not (math.isfinite(self.tau_s) and self.tau_s >= 0):
             raise ValueError(f"tau_s: expected a finite number >= 0, got {self.tau_s!r}")
         if not (self.a_max_m_s2 > 0):
@@ -127,6 +139,8 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
     tau = 0.0 if model is None else model.tau_s
     a_lim = math.inf if model is None else model.a_max_m_s2
     lag = math.exp(-dt / tau) if tau > 0 else 0.0
+    delay_ticks = 0 if model is None else int(round(model.delay_s / dt))
+    pending = [0.0] * delay_ticks  # commands issued but not yet acting (dead time), oldest first
     x, y, psi = start.x_m, start.y_m, start.course_rad
     a_ach = 0.0
     cols = {k: [] for k in ("t", "x", "y", "course", "a", "a_ach", "d", "k1", "k2")}
@@ -160,7 +174,11 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
             cols["a_ach"].append(a_ach)
             break
         # Inner loop: saturate, then first-order lag (exact over the tick); mean over the tick.
-        target = max(-a_lim, min(a_lim, a_cmd))
+        acting = a_cmd
+        if delay_ticks:
+            pending.append(a_cmd)
+            acting = pending.pop(0)
+        target = max(-a_lim, min(a_lim, acting))
         if tau > 0:
             a_next = target + (a_ach - target) * lag
             a_mean = target + (a_ach - target) * tau / dt * (1.0 - lag)

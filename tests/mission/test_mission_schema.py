@@ -54,7 +54,7 @@ def test_guidance_defaults_agree_with_guidance_params():
 
 
 def test_every_key_name_carries_its_unit_or_is_unitless_by_nature():
-    unitless = {"version", "name", "frame", "origin", "path", "guidance", "midcourse", "on_finish",
+    unitless = {"version", "name", "frame", "origin", "path", "guidance", "vehicle", "midcourse", "on_finish",
                 "start", "type", "y_of_x", "x_of_s", "y_of_s", "s_range", "closed", "method",
                 "k1_max", "k2_max", "d_limit_factor", "trigger", "segments", "vertical",
                 "along_track"}

@@ -77,3 +77,19 @@ def test_metrics_come_from_the_shared_definition():
     assert result.metrics["a_rms_m_s2"] == pytest.approx(1.0)
     assert result.metrics["samples"] == 51
     assert result.metrics["phases"]["close_range"]["duration_s"] == pytest.approx(1.0)
+
+
+def test_lag_model_with_a_dead_time_is_the_step_response_shifted_by_it():
+    tau, delay = 0.5, 0.2  # 10 ticks at 50 Hz
+    result = simulate(LINE, ConstantLaw(2.0), VehicleState(0.0, 0.0, 0.0, 5.0), PARAMS,
+                      model=LagModel(tau_s=tau, delay_s=delay), t_max_s=3.0)
+    t = result.t_s
+    expected = np.where(t >= delay - 1e-9, 2.0 * (1 - np.exp(-(t - delay) / tau)), 0.0)
+    assert np.allclose(result.a_achieved_m_s2, expected, atol=1e-9)
+
+
+def test_lag_model_from_a_vehicle_block_takes_its_lag_limit_and_dead_time():
+    from companion.guidance.types import VehicleModel
+
+    model = LagModel.from_vehicle(VehicleModel(a_max_m_s2=2.4, delay_s=0.17, lag_s=0.46, accel_lag_s=0.04))
+    assert (model.tau_s, model.a_max_m_s2, model.delay_s) == pytest.approx((0.5, 2.4, 0.17))

@@ -154,3 +154,40 @@ def test_invalid_parameters_are_refused_with_the_field_named():
         VehicleParams(a_max_m_s2=-1.0)
     with pytest.raises(ValueError, match="vehicle kind"):
         VehicleParams(kind="boat")
+
+
+# ------------------------------------------------------------------ the identified model's extras
+
+
+def test_a_delayed_velocity_step_is_the_first_order_step_shifted_by_the_delay():
+    model = copter(tau_vel_s=0.3, delay_s=0.2)
+    run(model, 0.2 - DT_S, vel=(1.0, 0.0, 0.0))
+    assert model.state.vel_ned_m_s[0] == 0.0  # nothing before the dead time has passed
+    run(model, 0.3 + DT_S, vel=(1.0, 0.0, 0.0))
+    assert model.state.vel_ned_m_s[0] == pytest.approx(1.0 - math.exp(-1.0), abs=1e-2)
+
+
+def test_a_second_acceleration_lag_gives_the_second_order_step_response():
+    # The acceleration the loop asks for, (c - v) / t1, is followed through a lag t2:
+    # t1 t2 v'' + t1 v' + v = c; for t1 = 0.3, t2 = 0.1 underdamped, s = -1/(2 t2) +- i w with
+    # w = sqrt(1/(t1 t2) - 1/(4 t2^2)), and v(t) = 1 - exp(-t/(2 t2)) (cos wt + sin(wt) / (2 t2 w)).
+    t1, t2, t = 0.3, 0.1, 0.5
+    model = copter(tau_vel_s=t1, accel_lag_s=t2)
+    run(model, t, vel=(1.0, 0.0, 0.0))
+    w = math.sqrt(1.0 / (t1 * t2) - 1.0 / (4.0 * t2 * t2))
+    expected = 1.0 - math.exp(-t / (2.0 * t2)) * (math.cos(w * t) + math.sin(w * t) / (2.0 * t2 * w))
+    assert model.state.vel_ned_m_s[0] == pytest.approx(expected, abs=5e-3)
+
+
+def test_speed_sag_slows_a_steady_turn_by_sag_times_lateral_acceleration():
+    # Command a velocity rotating at w = 0.4 rad/s at 5 m/s (2 m/s^2 asked): in the steady turn
+    # the speed V solves V = 5 - sag * V * w (no limit reached, lag small).
+    sag, w = 0.2, 0.4
+    model = copter(tau_vel_s=0.05, speed_sag_s=sag)
+    course = 0.0
+    for _ in range(round(20.0 / DT_S)):
+        course += w * DT_S
+        model.step_multirotor(DT_S, (5.0 * math.cos(course), 5.0 * math.sin(course), 0.0), 0.0)
+    speed = math.hypot(*model.state.vel_ned_m_s[:2])
+    # the lag alone rotates and shrinks the velocity by 1 / sqrt(1 + (w tau)^2): 0.02 % here
+    assert speed == pytest.approx(5.0 / (1.0 + sag * w), rel=5e-3)

@@ -1,0 +1,94 @@
+"""``companion identify FLIGHT.tlog [--json] [-o vehicle.yaml] [--partial]``: fit the vehicle model.
+
+Reads the velocity + yaw-rate setpoints and the vehicle's response from a tlog
+(:mod:`companion.io.idlog`), fits :mod:`companion.sim.identify`'s model, prints the parameters
+with their standard errors and the fit quality, and writes a ``vehicle:`` block that missions
+and ``sitl-mock --vehicle-model`` accept. When the log cannot identify a parameter (too little
+excitation) it refuses with one line naming it (exit 2); ``--partial`` writes the block anyway,
+with each such value marked as the fit's guess or the bound the log shows.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from companion.errors import CompanionError, LogError
+from companion.guidance.types import VEHICLE_MODEL_KEYS
+from companion.io.idlog import read_identification_samples
+from companion.sim.identify import IdentifyError, identify
+
+_DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "speed_sag_s": 3,
+             "yaw_rate_max_deg_s": 1}
+
+
+class IdentificationRefused(CompanionError):
+    """The log does not identify every parameter."""
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "identify", help="fit the vehicle's response to velocity setpoints from a tlog",
+        description="Fit acceleration limit, delay, lag, speed sag and yaw-rate limit of the vehicle "
+                    "from a tlog holding both directions of the link (docs/vehicle_model.md).")
+    parser.add_argument("tlog", help="the flight log (companion, MAVProxy or QGroundControl tlog)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    parser.add_argument("-o", "--output", metavar="FILE", help="write the vehicle: block to FILE (YAML)")
+    parser.add_argument("--partial", action="store_true",
+                        help="write the block even when some parameter is not identified (marked in it)")
+    parser.set_defaults(func=run)
+
+
+def vehicle_block_text(model, unidentified: dict, source: str) -> str:
+    """The ``vehicle:`` YAML block, one key per line with a comment on unidentified ones."""
+    values = model.as_dict()
+    lines = [f"# identified by companion identify from {source}", "vehicle:"]
+    for key in VEHICLE_MODEL_KEYS:
+        note = f"  # not identified: {unidentified[key]}" if key in unidentified else ""
+        lines.append(f"  {key}: {round(values[key], _DECIMALS[key])}{note}")
+    return "\n".join(lines) + "\n"
+
+
+def run(args) -> int:
+    path = Path(args.tlog)
+    if not path.is_file():
+        raise LogError(f"{path}: no such file")
+    samples = read_identification_samples(path)
+    try:
+        result = identify(samples)
+    except IdentifyError as err:
+        raise LogError(f"{path}: {err}") from None
+    q = result.quality
+    if args.json:
+        print(json.dumps({"vehicle": result.model.as_dict(), "std_errors": result.std_errors,
+                          "quality": q, "excitation": result.excitation,
+                          "unidentified": result.unidentified}, indent=2))
+    else:
+        values = result.model.as_dict()
+        print(f"{path.name}: {q['duration_s']:.0f} s of flight under velocity setpoints, "
+              f"model order {q['model_order']}")
+        for key in VEHICLE_MODEL_KEYS:
+            se = result.std_errors.get(key)
+            se_text = f" +- {se:.3g}" if se is not None and key != "yaw_rate_max_deg_s" else ""
+            flag = "  (not identified)" if key in result.unidentified else ""
+            print(f"  {key:20s} {values[key]:.{_DECIMALS[key]}f}{se_text}{flag}")
+        print(f"  lateral acceleration: one-step prediction explains {q['vaf_one_step']:.1%} of its variance "
+              f"(residual RMS {q['residual_rms_one_step_m_s2']:.3f} m/s^2); free run {q['vaf_free_run']:.1%} "
+              f"(RMS {q['residual_rms_free_run_m_s2']:.3f} m/s^2)")
+    if result.unidentified and not args.partial:
+        name, why = next(iter(result.unidentified.items()))
+        others = len(result.unidentified) - 1
+        more = f" (and {others} more: {', '.join(list(result.unidentified)[1:])})" if others else ""
+        raise IdentificationRefused(f"{path}: cannot identify vehicle.{name}: {why}{more}; "
+                                    "--partial writes the block anyway")
+    if args.output:
+        try:
+            Path(args.output).write_text(vehicle_block_text(result.model, result.unidentified, path.name))
+        except OSError as err:
+            raise LogError(f"{args.output}: cannot write: {err.strerror}") from None
+        if not args.json:
+            print(f"wrote {args.output}", file=sys.stderr)
+    elif not args.json:
+        print(vehicle_block_text(result.model, result.unidentified, path.name), end="")
+    return 0

@@ -1,0 +1,405 @@
+"""Identify a multicopter's response to velocity + yaw-rate setpoints from a flown log.
+
+    samples = resample(t_cmd_s=..., vel_cmd_ne_m_s=..., ...)       # uniform grid, pure arrays
+    result = identify(samples)                                    # IdentifyResult
+    result.model.a_max_m_s2, result.quality["vaf_one_step"], result.unidentified
+
+The model (docs/vehicle_model.md) is the one the mock flies and the guidance plans with: the
+horizontal velocity ``v`` follows the commanded velocity ``c`` seen ``delay_s`` late, reduced in
+magnitude in turns by ``speed_sag_s * |a_lat|`` (the speed sag), through a first-order lag of
+time constant ``lag_s`` whose acceleration is limited to ``a_max_m_s2`` (norm of the horizontal
+acceleration; in a turn at constant speed, the lateral acceleration)::
+
+    c_d(t) = c(t - delay_s) * max(0, 1 - speed_sag_s |a_lat(t)| / |c(t - delay_s)|)
+    dv     = (c_d - v) (1 - exp(-dt / lag_s)),   |dv| <= a_max_m_s2 dt          (one step dt)
+
+and the yaw rate follows its command clipped to ``yaw_rate_max_rad_s``.
+
+How it is fitted
+----------------
+The measured velocity is smoothed (zero-phase Savitzky-Golay, :data:`SMOOTH_S`) and differenced.
+The parameters minimise the **free-run** error of the horizontal acceleration vector: the model
+driven by the commands alone (:func:`simulate`, restarted from the measurement after each gap in
+the setpoint stream), its output passed through the same smoother, against the measurement; a
+nonlinear least-squares problem solved by :func:`scipy.optimize.least_squares`, first for the
+first-order model, then with the second lag ``accel_lag_s`` free. The second-order model is kept
+only if it cuts the residual by :data:`SECOND_ORDER_GAIN` of itself and by
+:data:`SECOND_ORDER_GAIN_ABS` of the lateral acceleration's RMS. The fit quality is the variance
+of the measured lateral acceleration the model explains (``1 - var(residual) / var(measured)``)
+one step ahead (each step from the measured velocity, and acceleration for the second-order
+model, where the figure is therefore close to 1 by construction) and in the free run, and the
+residual RMS of each.
+
+A parameter is *identified* when its 1-sigma standard error (from the Jacobian at the optimum)
+is under :data:`MAX_RELATIVE_SE` of its value and the log excites it: the acceleration limit
+needs the model to be saturated for at least :data:`MIN_SATURATED_S`; delay and lag need
+:data:`MIN_TURNING_S` of changing lateral-acceleration command; the speed sag needs turning at
+steady commanded speed; the yaw-rate limit needs the command to exceed what is flown for at
+least :data:`MIN_SATURATED_S`. Otherwise :attr:`IdentifyResult.unidentified` names it and why.
+
+Pure numpy/scipy: no files, no MAVLink (the tlog is read by ``companion.io``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import least_squares
+from scipy.signal import savgol_filter
+
+from companion.guidance.types import VehicleModel
+
+GRID_DT_S = 0.02  # resampling step (50 Hz, the rate the setpoints and positions are streamed at)
+MAX_COMMAND_GAP_S = 0.2  # a setpoint older than this: no command stream, the sample is not used
+SMOOTH_S = 0.3  # window of the smoother applied to the measured velocity before differencing
+MIN_SPEED_M_S = 1.0  # below it the lateral direction is ill-defined
+MAX_RELATIVE_SE = 0.1  # a parameter whose standard error exceeds this share of it is unidentified
+MIN_SATURATED_S = 1.0
+MIN_TURNING_S = 5.0
+MIN_SAG_TURNING_S = 5.0
+YAW_HOLD_S = 1.0  # a yaw-rate command held this long has had time to be flown
+YAW_SATURATION_MARGIN = 1.2  # command at least 20 % above the flown rate counts as saturating it
+
+PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s")
+_LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0])
+_UPPER = np.array([1.5, 3.0, 30.0, 2.0, 2.0])
+# The second-order model is kept when it cuts the free-run residual RMS by this share of it and
+# by this share of the lateral acceleration's RMS (a cut of a tiny residual is no evidence).
+SECOND_ORDER_GAIN = 0.1
+SECOND_ORDER_GAIN_ABS = 0.02
+
+
+class IdentifyError(ValueError):
+    """The samples cannot be used at all (too short, no command stream, nothing moving)."""
+
+
+@dataclass(frozen=True)
+class Samples:
+    """Commands and measurements on one uniform time grid (NE horizontal components).
+
+    ``valid[k]`` is true where a command was being streamed and the measurement exists at both
+    ``k`` and ``k + 1``; ``vel_cmd_ne_m_s`` is the command as sent (no delay applied): the model
+    reads it at ``t - delay_s`` by linear interpolation in ``t_cmd_s`` / ``vel_cmd_raw``.
+    """
+
+    t_s: np.ndarray
+    vel_ne_m_s: np.ndarray  # (N, 2) measured
+    valid: np.ndarray  # (N,) bool
+    t_cmd_s: np.ndarray  # raw command times
+    vel_cmd_raw_ne_m_s: np.ndarray  # (M, 2) raw commands
+    yaw_rate_cmd_raw_rad_s: np.ndarray  # (M,)
+    t_yaw_s: np.ndarray  # measured yaw-rate times
+    yaw_rate_rad_s: np.ndarray  # measured yaw rate
+
+
+def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_s: ArrayLike,
+             t_meas_s: ArrayLike, vel_meas_ne_m_s: ArrayLike, t_yaw_s: ArrayLike = (),
+             yaw_rate_meas_rad_s: ArrayLike = (), dt_s: float = GRID_DT_S) -> Samples:
+    """Put the log's commands and measurements on one grid of step ``dt_s``.
+
+    Times are seconds on one clock (the log's). Measured velocities are interpolated linearly
+    onto the grid; a grid point is valid when the newest command is at most
+    :data:`MAX_COMMAND_GAP_S` old and the measurement brackets it closely.
+    """
+    t_cmd = np.asarray(t_cmd_s, float)
+    vc = np.asarray(vel_cmd_ne_m_s, float).reshape(-1, 2)
+    yc = np.asarray(yaw_rate_cmd_rad_s, float)
+    tm = np.asarray(t_meas_s, float)
+    vm = np.asarray(vel_meas_ne_m_s, float).reshape(-1, 2)
+    if len(t_cmd) < 10:
+        raise IdentifyError(f"only {len(t_cmd)} velocity setpoints: expected a flight streaming them")
+    if len(tm) < 10:
+        raise IdentifyError(f"only {len(tm)} velocity measurements: expected LOCAL_POSITION_NED throughout")
+    order = np.argsort(t_cmd, kind="stable")
+    t_cmd, vc, yc = t_cmd[order], vc[order], yc[order]
+    order = np.argsort(tm, kind="stable")
+    tm, vm = tm[order], vm[order]
+    t0 = max(t_cmd[0], tm[0])
+    t1 = min(t_cmd[-1], tm[-1])
+    if t1 - t0 < 10 * dt_s:
+        raise IdentifyError("the setpoints and the measurements do not overlap in time")
+    t = np.arange(t0, t1, dt_s)
+    v = np.column_stack([np.interp(t, tm, vm[:, 0]), np.interp(t, tm, vm[:, 1])])
+    idx = np.searchsorted(t_cmd, t, side="right") - 1
+    cmd_age = t - t_cmd[np.clip(idx, 0, None)]
+    jdx = np.clip(np.searchsorted(tm, t), 1, len(tm) - 1)
+    meas_gap = tm[jdx] - tm[jdx - 1]
+    ok = (idx >= 0) & (cmd_age <= MAX_COMMAND_GAP_S) & (meas_gap <= 0.25)
+    valid = ok.copy()
+    valid[:-1] &= ok[1:]
+    valid[-1] = False
+    finite = np.isfinite(v).all(axis=1)
+    valid &= finite & np.roll(finite, -1)
+    return Samples(t, v, valid, t_cmd, vc, yc, np.asarray(t_yaw_s, float), np.asarray(yaw_rate_meas_rad_s, float))
+
+
+def _unit_lateral(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vector to the left of the velocity (NE frame: north, east; left of north is west)."""
+    speed = np.hypot(v[..., 0], v[..., 1])
+    safe = np.maximum(speed, 1e-9)
+    return np.stack([v[..., 1] / safe, -v[..., 0] / safe], axis=-1), speed
+
+
+def lateral_m_s2(vel_ne_m_s: np.ndarray, acc_ne_m_s2: np.ndarray) -> np.ndarray:
+    """Lateral acceleration, ``(v x a) / |v|`` with NE components, positive to the left of the
+    velocity (a left turn: anticlockwise seen from above)."""
+    lat, _ = _unit_lateral(vel_ne_m_s)
+    return np.asarray(np.sum(lat * acc_ne_m_s2, axis=-1), dtype=float)
+
+
+def _delayed_command(s: Samples, delay_s: float) -> np.ndarray:
+    tq = s.t_s - delay_s
+    return np.column_stack([np.interp(tq, s.t_cmd_s, s.vel_cmd_raw_ne_m_s[:, 0]),
+                            np.interp(tq, s.t_cmd_s, s.vel_cmd_raw_ne_m_s[:, 1])])
+
+
+def smoothed(s: Samples) -> np.ndarray:
+    """The measured velocity through a zero-phase Savitzky-Golay smoother (quadratic, window
+    :data:`SMOOTH_S`): differencing 50 Hz estimator output amplifies its sample noise (PX4's by
+    metres per second squared), far above the dynamics being fitted."""
+    dt = float(s.t_s[1] - s.t_s[0])
+    window = max(5, int(round(SMOOTH_S / dt)) | 1)
+    if len(s.t_s) <= window:
+        return np.array(s.vel_ne_m_s, dtype=float)
+    return np.asarray(savgol_filter(s.vel_ne_m_s, window, 2, axis=0, mode="interp"), dtype=float)
+
+
+def _smooth_like_measured(s: Samples, acc: np.ndarray) -> np.ndarray:
+    """The same smoother applied to a model's acceleration, so a free run is compared with the
+    measurement like with like (both linear filters commute with differencing)."""
+    dt = float(s.t_s[1] - s.t_s[0])
+    window = max(5, int(round(SMOOTH_S / dt)) | 1)
+    if len(s.t_s) <= window:
+        return acc
+    return np.asarray(savgol_filter(acc, window, 2, axis=0, mode="interp"), dtype=float)
+
+
+def _measured(s: Samples) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    dt = float(s.t_s[1] - s.t_s[0])
+    v = smoothed(s)
+    acc = np.zeros_like(v)
+    acc[:-1] = (v[1:] - v[:-1]) / dt
+    # lateral acceleration of the step, about the mean velocity over it
+    v_mid = v.copy()
+    v_mid[:-1] = 0.5 * (v[1:] + v[:-1])
+    return dt, acc, lateral_m_s2(v_mid, acc), v_mid, v
+
+
+def _used(s: Samples, v_mid: np.ndarray, delay_s: float) -> np.ndarray:
+    return np.asarray(s.valid & (np.hypot(v_mid[:, 0], v_mid[:, 1]) > MIN_SPEED_M_S)
+                      & (s.t_s - delay_s >= s.t_cmd_s[0]), dtype=bool)
+
+
+def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Run the model over the samples; returns ``(acc (N, 2), saturated (N,))``: the model's
+    acceleration over each step ``k -> k + 1``.
+
+    ``theta`` = ``(delay_s, lag_s, a_max_m_s2, speed_sag_s, accel_lag_s)``. In a free run
+    (default) the state is the model's own, restarted from the (smoothed) measurement after each
+    gap in the command stream; with ``one_step`` every step starts from the measured velocity
+    (and acceleration, for the second-order model), so the result is the one-step prediction.
+    The speed sag always reads the model's own lateral acceleration: the measured one, a
+    difference of a noisy estimate, would feed its noise straight into the prediction.
+    """
+    dt, acc_m, a_lat_m, _, v_m = _measured(s)
+    delay, lag, a_max, sag, acc_lag = (float(x) for x in np.asarray(theta, dtype=float))
+    c = _delayed_command(s, delay)
+    k_v = (1.0 - math.exp(-dt / lag)) / dt if lag > 0 else 1.0 / dt
+    k_a = 1.0 - math.exp(-dt / acc_lag) if acc_lag > 0 else 1.0
+    n = len(s.t_s)
+    out = np.zeros((n, 2))
+    sat = np.zeros(n, dtype=bool)
+    valid = s.valid
+    vn, ve = v_m[0]
+    an, ae = 0.0, 0.0
+    lat_abs = 0.0
+    for i in range(n - 1):
+        if one_step or not valid[i]:
+            vn, ve = v_m[i]
+            if i > 0:
+                an, ae = acc_m[i - 1]
+            if not valid[i]:
+                lat_abs = abs(a_lat_m[i - 1]) if i > 0 else 0.0
+                continue
+        cn, ce = c[i]
+        cs = math.hypot(cn, ce)
+        scale = min(1.0, max(0.0, 1.0 - sag * lat_abs / cs)) if cs > 1e-9 else 1.0
+        tn = (cn * scale - vn) * k_v
+        te = (ce * scale - ve) * k_v
+        norm = math.hypot(tn, te)
+        if norm > a_max:
+            tn *= a_max / norm
+            te *= a_max / norm
+            sat[i] = True
+        an += (tn - an) * k_a
+        ae += (te - ae) * k_a
+        out[i] = (an, ae)
+        mn, me = vn + 0.5 * an * dt, ve + 0.5 * ae * dt
+        sp = math.hypot(mn, me)
+        lat_abs = abs(me * an - mn * ae) / sp if sp > 1e-9 else 0.0
+        vn += an * dt
+        ve += ae * dt
+    return out, sat
+
+
+@dataclass(frozen=True)
+class IdentifyResult:
+    """What :func:`identify` found.
+
+    ``model`` carries every fitted value (also those not identified, as the fit left them);
+    ``unidentified`` maps a parameter name to the reason the log cannot pin it down;
+    ``std_errors`` the 1-sigma standard errors; ``quality`` the fit figures.
+    """
+
+    model: VehicleModel
+    std_errors: dict[str, float]
+    quality: dict[str, float]
+    excitation: dict[str, float]
+    unidentified: dict[str, str] = field(default_factory=dict)
+
+
+def _vaf(measured: np.ndarray, predicted: np.ndarray) -> float:
+    var = float(np.var(measured))
+    return float("nan") if var <= 0 else 1.0 - float(np.var(measured - predicted)) / var
+
+
+def _fit(s: Samples, second_order: bool, start: ArrayLike,
+         max_nfev: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Least squares of the free-run acceleration error; returns (theta, std errors, rms)."""
+    _, acc_m, _, v_mid, _ = _measured(s)
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        theta = x if second_order else np.append(x, 0.0)
+        acc = _smooth_like_measured(s, simulate(s, theta)[0])
+        u = _used(s, v_mid, theta[0])
+        return np.asarray(acc[u] - acc_m[u], dtype=float).ravel()
+
+    lower, upper = (_LOWER, _UPPER) if second_order else (_LOWER[:4], _UPPER[:4])
+    x0 = np.clip(np.asarray(start, float)[:len(lower)], lower + 1e-6, upper - 1e-6)
+    best = least_squares(residual, x0, bounds=(lower, upper), x_scale=np.array([0.1, 0.1, 1.0, 0.1, 0.1])[:len(lower)],
+                         diff_step=1e-3, max_nfev=max_nfev)
+    n = best.fun.size
+    sigma2 = 2.0 * best.cost / max(n - len(lower), 1)
+    # Neighbouring samples' errors are correlated (the free run carries its error along): count
+    # one independent sample per lag time, which widens the standard errors accordingly.
+    lag_samples = max(1.0, float(best.x[1]) / float(s.t_s[1] - s.t_s[0]))
+    cov = np.linalg.pinv(best.jac.T @ best.jac) * sigma2 * lag_samples
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    theta = best.x if second_order else np.append(best.x, 0.0)
+    se = se if second_order else np.append(se, 0.0)
+    return theta, se, float(np.sqrt(2.0 * best.cost / max(n, 1)))
+
+
+def _yaw_rate_limit(s: Samples, delay_s: float, dt: float) -> tuple[float | None, float, float]:
+    """(limit_rad_s, saturated_s, max_flown_rad_s): the yaw-rate limit from the samples where the
+    command exceeds the flown rate by :data:`YAW_SATURATION_MARGIN`."""
+    if len(s.t_yaw_s) < 10:
+        return None, 0.0, 0.0
+    cmd = np.interp(s.t_yaw_s - delay_s, s.t_cmd_s, s.yaw_rate_cmd_raw_rad_s)
+    idx = np.searchsorted(s.t_cmd_s, s.t_yaw_s - delay_s, side="right") - 1
+    streamed = (idx >= 0) & ((s.t_yaw_s - delay_s) - s.t_cmd_s[np.clip(idx, 0, None)] <= MAX_COMMAND_GAP_S)
+    flown = np.abs(s.yaw_rate_rad_s)
+    max_flown = float(np.max(flown[streamed])) if streamed.any() else 0.0
+    # held: the command has not changed over the last YAW_HOLD_S (the response has settled)
+    held = np.abs(cmd - np.interp(s.t_yaw_s - delay_s - YAW_HOLD_S, s.t_cmd_s, s.yaw_rate_cmd_raw_rad_s)) < 0.02
+    sat = streamed & held & (np.abs(cmd) > YAW_SATURATION_MARGIN * flown) & (np.abs(cmd) > 0.2)
+    # each yaw sample stands for the median spacing of the yaw stream
+    spacing = float(np.median(np.diff(s.t_yaw_s)))
+    sat_s = float(sat.sum()) * spacing
+    if sat.sum() < 5:
+        return None, sat_s, max_flown
+    # the flown rate while held at the limit: the upper decile of the saturated samples; a
+    # limit must also be about the most the vehicle ever flew (else the command was only lagging)
+    limit = float(np.percentile(flown[sat], 90))
+    if limit < 0.8 * float(np.percentile(flown[streamed], 99.5)):
+        return None, sat_s, max_flown
+    return limit, sat_s, max_flown
+
+
+def identify(s: Samples) -> IdentifyResult:
+    """Fit the model to the samples; see the module docstring."""
+    dt = float(s.t_s[1] - s.t_s[0])
+    _, acc_m, a_lat_m, v_mid, _ = _measured(s)
+    u0 = _used(s, v_mid, 0.0)
+    if u0.sum() * dt < 10.0:
+        raise IdentifyError(f"only {u0.sum() * dt:.1f} s of flight above {MIN_SPEED_M_S} m/s under "
+                            "velocity setpoints: expected at least 10 s")
+    theta1, se1, rms1 = _fit(s, False, (0.15, 0.3, 3.0, 0.05), 40)
+    theta2, se2, rms2 = _fit(s, True, (*theta1[:4], 0.05), 20)
+    a_lat_rms = float(np.sqrt(np.mean(a_lat_m[u0] ** 2)))
+    second = rms2 < (1.0 - SECOND_ORDER_GAIN) * rms1 and rms1 - rms2 > SECOND_ORDER_GAIN_ABS * a_lat_rms
+    theta, se = (theta2, se2) if second else (theta1, se1)
+    u = _used(s, v_mid, theta[0])
+    a_lat = a_lat_m[u]
+    one, sat = simulate(s, theta, one_step=True)
+    free = _smooth_like_measured(s, simulate(s, theta)[0])
+    a_lat_one = lateral_m_s2(v_mid, one)[u]
+    a_lat_free = lateral_m_s2(v_mid, free)[u]
+    quality = {
+        "samples": int(u.sum()),
+        "duration_s": float(u.sum() * dt),
+        "model_order": 2 if second else 1,
+        "vaf_one_step": _vaf(a_lat, a_lat_one),
+        "residual_rms_one_step_m_s2": float(np.sqrt(np.mean((a_lat - a_lat_one) ** 2))),
+        "vaf_free_run": _vaf(a_lat, a_lat_free),
+        "residual_rms_free_run_m_s2": float(np.sqrt(np.mean((a_lat - a_lat_free) ** 2))),
+        "acc_residual_rms_first_order_m_s2": rms1,
+        "acc_residual_rms_second_order_m_s2": rms2,
+        "a_lat_rms_m_s2": float(np.sqrt(np.mean(a_lat ** 2))),
+    }
+    r = {"saturated": sat, "c": _delayed_command(s, theta[0])}
+    # Excitation of each parameter
+    c = r["c"]
+    c_speed = np.hypot(c[:, 0], c[:, 1])
+    c_turn = np.zeros(len(c))
+    c_turn[:-1] = lateral_m_s2(0.5 * (c[1:] + c[:-1]), (c[1:] - c[:-1]) / dt)
+    changing = u & (np.abs(np.gradient(c_turn, dt)) > 0.2)
+    turning = u & (np.abs(c_turn) > 0.3)
+    steady_speed = np.abs(np.gradient(c_speed, dt)) < 0.1
+    excitation = {
+        "saturated_s": float((r["saturated"] & u).sum() * dt),
+        "turn_changing_s": float(changing.sum() * dt),
+        "turning_steady_speed_s": float((turning & steady_speed).sum() * dt),
+        "a_lat_cmd_max_m_s2": float(np.max(np.abs(c_turn[u]))) if u.any() else 0.0,
+    }
+    yaw_limit, yaw_sat_s, yaw_flown = _yaw_rate_limit(s, theta[0], dt)
+    excitation["yaw_saturated_s"] = yaw_sat_s
+    excitation["yaw_rate_max_flown_rad_s"] = yaw_flown
+
+    unidentified: dict[str, str] = {}
+    if excitation["turn_changing_s"] < MIN_TURNING_S:
+        for name in ("delay_s", "lag_s"):
+            unidentified[name] = (f"only {excitation['turn_changing_s']:.1f} s of changing turn command "
+                                  f"(expected {MIN_TURNING_S:.0f} s): fly course-rate steps or a chirp")
+    if excitation["saturated_s"] < MIN_SATURATED_S:
+        unidentified["a_max_m_s2"] = (f"the vehicle reached its acceleration limit for only "
+                                      f"{excitation['saturated_s']:.1f} s (expected {MIN_SATURATED_S:.0f} s; "
+                                      f"largest turn commanded {excitation['a_lat_cmd_max_m_s2']:.1f} m/s^2): "
+                                      "fly harder turns")
+    if excitation["turning_steady_speed_s"] < MIN_SAG_TURNING_S:
+        unidentified["speed_sag_s"] = (f"only {excitation['turning_steady_speed_s']:.1f} s of turning at a "
+                                       f"steady commanded speed (expected {MIN_SAG_TURNING_S:.0f} s)")
+    # The sag is zero for a vehicle without it: judge its standard error in absolute terms.
+    scales = {"delay_s": max(theta[0], 0.1), "lag_s": theta[1], "a_max_m_s2": theta[2],
+              "speed_sag_s": max(theta[3], 0.2), "accel_lag_s": max(theta[4], 0.05)}
+    for i, name in enumerate(PARAMS):
+        if name not in unidentified and not se[i] <= MAX_RELATIVE_SE * scales[name]:
+            unidentified[name] = (f"standard error {se[i]:.3g} is more than {MAX_RELATIVE_SE:.0%} of the "
+                                  f"value {theta[i]:.3g}: the log does not pin it down")
+    if yaw_limit is None:
+        if len(s.t_yaw_s) < 10:
+            unidentified["yaw_rate_max_deg_s"] = "no ATTITUDE messages (yaw rate) in the log"
+        else:
+            unidentified["yaw_rate_max_deg_s"] = (
+                f"the yaw rate never saturated (flown up to {math.degrees(yaw_flown):.0f} deg/s as commanded): "
+                f"the limit is at least that; command faster yaw rates to find it")
+    yaw_value = yaw_limit if yaw_limit is not None else max(yaw_flown, math.radians(1.0))
+    model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
+                         speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
+                         yaw_rate_max_deg_s=math.degrees(yaw_value))
+    std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
+    return IdentifyResult(model=model, std_errors=std, quality=quality, excitation=excitation,
+                          unidentified=unidentified)

@@ -1,0 +1,69 @@
+"""predictive's model monitor: which (lag, limit) explains the flown lateral acceleration, and the
+law flying a vehicle whose model it was given wrong by 2x."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from companion.guidance.predictive import MONITOR_A_MAX_FACTORS, MONITOR_LAG_FACTORS, ModelMonitor
+from companion.guidance.two_phase import TwoPhaseGuidance
+from companion.guidance.types import VehicleState
+from companion.mission import load_mission
+from companion.sim.simulator import LagModel, simulate
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+def fly_monitor(true_lag_s, true_a_max, nominal_lag_s=0.3, nominal_a_max=5.0, seconds=20.0, dt=0.02):
+    """Feed the monitor a square wave of commands and the course a vehicle with the true first-order
+    lag and limit flies from them (exact discretisation, independent of the monitor's code)."""
+    monitor = ModelMonitor(nominal_lag_s, nominal_a_max)
+    speed, course, a = 5.0, 0.0, 0.0
+    cmd = 0.0
+    for i in range(int(seconds / dt)):
+        t = i * dt
+        monitor.update(t, course, speed, cmd)
+        cmd = 4.0 if (t % 4.0) < 2.0 else -4.0
+        target = max(-true_a_max, min(true_a_max, cmd))
+        k = math.exp(-dt / true_lag_s)
+        a_mean = target + (a - target) * true_lag_s / dt * (1.0 - k)  # mean over the tick
+        course += a_mean / speed * dt
+        a = target + (a - target) * k
+    return monitor
+
+
+def test_the_monitor_keeps_the_nominal_model_when_the_vehicle_is_the_nominal_one():
+    m = fly_monitor(0.3, 5.0)
+    assert (m.lag_s, m.a_max_m_s2) == pytest.approx((0.3, 5.0))
+    assert not m.fallback
+
+
+def test_the_monitor_finds_a_vehicle_twice_as_slow_with_half_the_acceleration():
+    m = fly_monitor(0.6, 2.5)
+    assert m.lag_s == pytest.approx(0.6)
+    assert m.a_max_m_s2 == pytest.approx(2.5)
+    assert not m.fallback
+    assert 2.0 in MONITOR_LAG_FACTORS and 0.5 in MONITOR_A_MAX_FACTORS
+
+
+def test_predictive_given_a_model_wrong_by_2x_adapts_and_tracks_at_least_as_well():
+    # The racetrack with a vehicle: block claiming twice the acceleration and half the lag the
+    # simulated vehicle has: with the monitor, the law re-plans with what it sees.
+    mission = load_mission(ROOT / "missions" / "racetrack_predictive.yaml")
+    st = mission.start
+    true = LagModel(tau_s=0.6, a_max_m_s2=2.5, delay_s=0.0)
+    out = {}
+    for adapt in (False, True):
+        params = replace(mission.guidance, rollout_tau_s=0.3, a_max_m_s2=5.0, adapt_model=adapt)
+        law = TwoPhaseGuidance(mission.path, params)
+        r = simulate(mission.path, law, VehicleState(st.x_m, st.y_m, st.heading_rad, mission.speed_m_s), params,
+                     model=true, t_max_s=120.0, keep_outputs=True)
+        after = r.t_s > 30.0
+        out[adapt] = (float(np.sqrt(np.mean(r.crosstrack_m[after] ** 2))), r.outputs[-1].extra)
+    assert out[True][1]["model_lag_s"] == pytest.approx(0.6)
+    assert out[True][1]["model_a_max_m_s2"] == pytest.approx(2.5)
+    assert out[True][0] <= out[False][0]

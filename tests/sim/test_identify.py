@@ -1,0 +1,212 @@
+"""Vehicle identification: closed forms, flights of the mock's vehicle with a known model, the real
+firmware's identification flights (../shared/data/real/), and the command's refusals."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from companion.cli.main import main
+from companion.guidance.types import VehicleModel
+from companion.sim.identify import Samples, identify, lateral_m_s2, resample, simulate
+from sitl_mock.vehicle import VehicleModel as MockVehicle
+from sitl_mock.vehicle import VehicleParams
+
+ROOT = Path(__file__).resolve().parents[2]
+REAL = ROOT.parent / "shared" / "data" / "real"
+AP_ID = REAL / "ardupilot-copter-id.tlog"
+PX4_ID = REAL / "px4-sih-id.tlog"
+SINE = ROOT.parent / "shared" / "data" / "ardupilot-copter-sitl-sine.tlog"
+
+
+def shared(path: Path) -> Path:
+    """A shared flight log; missing is a failure (the checkout must have shared/ beside it)."""
+    assert path.is_file(), f"{path} is missing: these tests need ../shared/data beside the repository"
+    return path
+
+
+# ------------------------------------------------------------------ closed forms
+
+
+def test_lateral_acceleration_is_positive_turning_left_seen_from_above():
+    # NE frame: flying north (v = (1, 0)), accelerating west (0, -1) is a left turn.
+    assert lateral_m_s2(np.array([[1.0, 0.0]]), np.array([[0.0, -2.0]]))[0] == pytest.approx(2.0)
+    assert lateral_m_s2(np.array([[0.0, 3.0]]), np.array([[0.0, 1.0]]))[0] == pytest.approx(0.0)
+    # flying east, accelerating north: anticlockwise, a left turn
+    assert lateral_m_s2(np.array([[0.0, 3.0]]), np.array([[1.5, 0.0]]))[0] == pytest.approx(1.5)
+
+
+def _step_samples(delay_s=0.0, speed_m_s=2.0, n=400, dt=0.02):
+    t = np.arange(n) * dt
+    cmd = np.where(t >= 1.0, speed_m_s, 0.0)
+    vc = np.column_stack([cmd, np.zeros(n)])
+    return Samples(t, np.zeros((n, 2)), np.ones(n, bool), t, vc, np.zeros(n), np.zeros(0), np.zeros(0))
+
+
+def test_free_run_of_a_velocity_step_is_a_delayed_exponential():
+    # v(t) = V (1 - exp(-(t - 1 - d) / tau)) after the step at 1 s seen d late; no limit reached.
+    s = _step_samples()
+    tau, d, dt = 0.4, 0.1, 0.02
+    acc, sat = simulate(s, (d, tau, 100.0, 0.0, 0.0))
+    v = np.concatenate([[0.0], np.cumsum(acc[:-1, 0]) * dt])
+    t = s.t_s
+    # the command is read by linear interpolation: the step is a 20 ms ramp centred 10 ms early
+    expected = np.where(t > 1.0 + d, 2.0 * (1.0 - np.exp(-(t - 1.0 - d) / tau)), 0.0)
+    assert np.max(np.abs(v - expected)) < 0.06
+    assert not sat.any()
+
+
+def test_free_run_saturates_at_the_acceleration_limit():
+    # A 2 m/s step through tau 0.1 asks for 20 m/s^2; limited to 1 m/s^2, v rises linearly.
+    s = _step_samples()
+    acc, sat = simulate(s, (0.0, 0.1, 1.0, 0.0, 0.0))
+    t = s.t_s
+    ramp = (t > 1.1) & (t < 2.5)
+    assert np.allclose(acc[ramp, 0], 1.0)
+    assert sat[ramp].all()
+
+
+# ------------------------------------------------------------------ the mock's vehicle, known models
+
+
+def _schedule():
+    """The shared identification flights' schedule (README of ../shared/data/real)."""
+    out = []
+    for speed in (3.0, 5.0, 8.0):
+        out.append((4, speed, 0.0))
+        for a in (1.0, 2.0, 3.5, 5.0):
+            out += [(3, speed, a / speed), (2, speed, 0.0), (3, speed, -a / speed), (2, speed, 0.0)]
+        out.append((20, speed, ("chirp", 2.5 / speed, 0.05, 1.0)))
+    return out + [(3, 2.0, 0.0), (3, 6.0, 0.0), (3, 2.0, 0.0), (3, 6.0, 0.0)]
+
+
+def fly_schedule_on_mock_vehicle(params: VehicleParams, physics_hz=400.0, rate_hz=50.0) -> Samples:
+    """Fly the identification schedule on the mock's own vehicle model (400 Hz physics), streaming
+    setpoints and sampling the velocity and yaw rate at 50 Hz, as the recorder does."""
+    model = MockVehicle(params, (0.0, 0.0, -10.0), 0.0, airborne=True)
+    dt = 1.0 / physics_hz
+    per = int(round(physics_hz / rate_hz))
+    course, t = 0.0, 0.0
+    rows_cmd, rows_meas = [], []
+    for duration, speed, rate_spec in _schedule():
+        for j in range(int(round(duration * rate_hz))):
+            tau = j / rate_hz
+            if isinstance(rate_spec, tuple):
+                _, amp, f0, f1 = rate_spec
+                k = (f1 - f0) / duration
+                rate = amp * math.sin(2 * math.pi * (f0 * tau + 0.5 * k * tau * tau))
+            else:
+                rate = rate_spec
+            course += rate / rate_hz
+            cmd = (speed * math.cos(course), speed * math.sin(course), 0.0)
+            rows_cmd.append((t, cmd[0], cmd[1], rate))
+            for _ in range(per):
+                model.step_multirotor(dt, cmd, rate)
+                t += dt
+            st = model.state
+            rows_meas.append((t, st.vel_ned_m_s[0], st.vel_ned_m_s[1], st.yaw_rate_rad_s))
+    c = np.array(rows_cmd)
+    m = np.array(rows_meas)
+    return resample(t_cmd_s=c[:, 0], vel_cmd_ne_m_s=c[:, 1:3], yaw_rate_cmd_rad_s=c[:, 3], t_meas_s=m[:, 0],
+                    vel_meas_ne_m_s=m[:, 1:3], t_yaw_s=m[:, 0], yaw_rate_meas_rad_s=m[:, 3])
+
+
+KNOWN_MODELS = {
+    "arducopter-like": dict(tau_vel_s=0.45, a_max_m_s2=2.5, delay_s=0.15, speed_sag_s=0.1,
+                            yaw_rate_max_rad_s=math.radians(60.0)),
+    "px4-like": dict(tau_vel_s=0.55, a_max_m_s2=3.5, delay_s=0.08, speed_sag_s=0.25,
+                     yaw_rate_max_rad_s=math.radians(75.0)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(KNOWN_MODELS))
+def test_identify_recovers_every_parameter_of_the_mock_vehicle_within_10_percent(name):
+    known = KNOWN_MODELS[name]
+    params = VehicleParams(kind="copter", tau_yaw_rate_s=0.1, **known)
+    result = identify(fly_schedule_on_mock_vehicle(params))
+    m = result.model
+    assert result.unidentified == {}
+    assert result.quality["model_order"] == 1
+    assert m.lag_s == pytest.approx(known["tau_vel_s"], rel=0.1)
+    assert m.a_max_m_s2 == pytest.approx(known["a_max_m_s2"], rel=0.1)
+    assert m.delay_s == pytest.approx(known["delay_s"], rel=0.1)
+    assert m.speed_sag_s == pytest.approx(known["speed_sag_s"], rel=0.1)
+    assert m.yaw_rate_max_deg_s == pytest.approx(math.degrees(known["yaw_rate_max_rad_s"]), rel=0.1)
+    assert result.quality["vaf_one_step"] > 0.99
+
+
+# ------------------------------------------------------------------ the real firmware's flights
+
+
+@pytest.fixture(scope="module")
+def ardupilot_id(tmp_path_factory):
+    out = tmp_path_factory.mktemp("id") / "vehicle.yaml"
+    return out
+
+
+def test_arducopter_identification_flight_explains_90_percent_of_lateral_acceleration(ardupilot_id, capsys):
+    code = main(["identify", str(shared(AP_ID)), "--json", "-o", str(ardupilot_id)])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert report["quality"]["vaf_one_step"] >= 0.9
+    assert report["quality"]["vaf_free_run"] >= 0.9
+    vehicle = report["vehicle"]
+    # the README's first look: saturation near 2.6 m/s^2 at every speed (last second of 3 s steps)
+    assert 2.2 <= vehicle["a_max_m_s2"] <= 2.8
+    # cross-correlation puts command-to-response near 0.4 s: dead time plus lag is its scale
+    assert 0.3 <= vehicle["delay_s"] + vehicle["lag_s"] <= 0.8
+    block = yaml.safe_load(ardupilot_id.read_text())
+    assert set(block) == {"vehicle"}
+    assert VehicleModel(**block["vehicle"]).a_max_m_s2 == pytest.approx(vehicle["a_max_m_s2"], abs=0.01)
+
+
+def test_px4_identification_flight_fits_in_a_free_run_and_names_the_yaw_limit_it_cannot_see(capsys):
+    code = main(["identify", str(shared(PX4_ID)), "--json", "--partial"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert report["quality"]["vaf_free_run"] >= 0.85
+    # never saturated in yaw: the flight commanded at most 5/3 rad/s and PX4 flew it
+    assert "yaw_rate_max_deg_s" in report["unidentified"]
+    assert report["vehicle"]["yaw_rate_max_deg_s"] >= 85.0
+    assert 3.0 <= report["vehicle"]["a_max_m_s2"] <= 5.0
+
+
+def test_a_gentle_flight_is_refused_naming_the_parameter_it_cannot_identify(capsys):
+    code = main(["identify", str(shared(SINE))])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1
+    assert "cannot identify vehicle." in err[0] or "expected at least 10 s" in err[0]
+
+
+def test_a_log_without_setpoints_is_refused_in_one_line(tmp_path, capsys):
+    empty = tmp_path / "empty.tlog"
+    empty.write_bytes(b"")
+    code = main(["identify", str(empty)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "SET_POSITION_TARGET_LOCAL_NED" in err[0]
+
+
+def test_the_written_vehicle_block_is_accepted_by_a_mission_and_by_the_mock(tmp_path):
+    from companion.cli.identify import vehicle_block_text
+    from companion.mission import load_mission
+    from sitl_mock.cli import load_vehicle_model
+
+    model = VehicleModel(a_max_m_s2=2.43, delay_s=0.173, lag_s=0.457, speed_sag_s=0.049, yaw_rate_max_deg_s=60.6)
+    text = vehicle_block_text(model, {"yaw_rate_max_deg_s": "never saturated"}, "flight.tlog")
+    block = tmp_path / "vehicle.yaml"
+    block.write_text(text)
+    mission = tmp_path / "m.yaml"
+    mission.write_text((ROOT / "missions" / "racetrack_predictive.yaml").read_text() + text)
+    loaded = load_mission(mission)
+    assert loaded.vehicle == model
+    # the guidance plans within it: lag plus dead time, and never beyond its limit
+    assert loaded.guidance.rollout_tau_s == pytest.approx(0.457 + 0.173)
+    assert loaded.guidance.a_max_m_s2 == pytest.approx(2.43)
+    assert loaded.guidance.adapt_model
+    assert load_vehicle_model(str(block))["lag_s"] == pytest.approx(0.457)

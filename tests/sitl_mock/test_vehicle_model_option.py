@@ -1,0 +1,54 @@
+"""``sitl-mock --vehicle-model FILE`` and the copter personalities' identified defaults."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from sitl_mock.cli import build_parser, config_from_args, main
+from sitl_mock.personality import IDENTIFIED_COPTER_MODELS
+
+
+def config(*argv):
+    return config_from_args(build_parser().parse_args(list(argv)))
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_a_copter_flies_the_model_identified_from_its_autopilot_by_default(autopilot):
+    vp = config("--autopilot", autopilot).vehicle_params
+    model = IDENTIFIED_COPTER_MODELS[autopilot]
+    assert (vp.tau_vel_s, vp.a_max_m_s2, vp.delay_s, vp.speed_sag_s) == (
+        model["lag_s"], model["a_max_m_s2"], model["delay_s"], model["speed_sag_s"])
+    assert vp.yaw_rate_max_rad_s == pytest.approx(math.radians(model["yaw_rate_max_deg_s"]))
+
+
+def test_a_rover_keeps_the_generic_model():
+    vp = config("--vehicle", "rover").vehicle_params
+    assert (vp.tau_vel_s, vp.a_max_m_s2, vp.delay_s) == (0.3, 3.0, 0.0)
+
+
+def test_the_vehicle_model_file_sets_the_model_and_options_override_single_values(tmp_path):
+    f = tmp_path / "vehicle.yaml"
+    f.write_text("# from companion identify\nvehicle:\n  a_max_m_s2: 2.5\n  lag_s: 0.4\n  delay_s: 0.15\n"
+                 "  speed_sag_s: 0.1\n  yaw_rate_max_deg_s: 60\n")
+    vp = config("--vehicle-model", str(f)).vehicle_params
+    assert (vp.a_max_m_s2, vp.tau_vel_s, vp.delay_s, vp.speed_sag_s, vp.accel_lag_s) == (2.5, 0.4, 0.15, 0.1, 0.0)
+    assert vp.yaw_rate_max_rad_s == pytest.approx(math.radians(60.0))
+    vp = config("--vehicle-model", str(f), "--a-max-m-s2", "4").vehicle_params
+    assert (vp.a_max_m_s2, vp.tau_vel_s) == (4.0, 0.4)
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("vehicle:\n  lag_s: 0.4\n", "vehicle.a_max_m_s2: missing"),
+    ("vehicle:\n  a_max_m_s2: 2\n  lag_s: 0.4\n  lag: 1\n", "vehicle.lag: unknown key"),
+    ("vehicle:\n  a_max_m_s2: fast\n  lag_s: 0.4\n", "vehicle.a_max_m_s2: expected a finite number"),
+    ("name: x\n", "expected a mapping with a vehicle: block"),
+    ("vehicle: [1\n", "not YAML"),
+])
+def test_a_bad_vehicle_model_file_is_one_line_and_exit_2(tmp_path, capsys, text, expected):
+    f = tmp_path / "vehicle.yaml"
+    f.write_text(text)
+    assert main(["--vehicle-model", str(f), "--duration-s", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and expected in err[0], err
