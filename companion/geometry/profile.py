@@ -37,8 +37,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable, Union
 
 import numpy as np
+import numpy.typing as npt
 from scipy.ndimage import maximum_filter1d
 
 #: Grid spacing of the profile tables (finer for short paths; at most MAX_SAMPLES nodes).
@@ -82,7 +84,8 @@ class PathProfile:
     constant_speed, constant_altitude : True when that table is one value.
     """
 
-    def __init__(self, s_m, alt_m, speed_m_s, closed: bool, limits: ProfileLimits):
+    def __init__(self, s_m: npt.ArrayLike, alt_m: npt.ArrayLike, speed_m_s: npt.ArrayLike, closed: bool,
+                 limits: ProfileLimits):
         s = np.asarray(s_m, dtype=float)
         h = np.asarray(alt_m, dtype=float)
         v = np.asarray(speed_m_s, dtype=float)
@@ -94,20 +97,22 @@ class PathProfile:
         self.closed = bool(closed)
         self.limits = limits
         self._ds = self.length_m / (s.size - 1)
-        g = np.gradient(h, self._ds)
+        g: np.ndarray = np.gradient(h, self._ds)
         for arr in (s, h, v, g):
             arr.setflags(write=False)
         self.s_m, self.alt_m, self.speed_m_s_table, self.slope_table = s, h, v, g
         self.constant_speed = bool(np.all(v == v[0]))
         self.constant_altitude = bool(np.all(h == h[0]))
         # Python lists: the flight loop asks one value per tick.
-        self._h, self._v, self._g = h.tolist(), v.tolist(), g.tolist()
+        self._h: list[float] = h.tolist()
+        self._v: list[float] = v.tolist()
+        self._g: list[float] = g.tolist()
 
     def __repr__(self) -> str:
         return (f"PathProfile({self.length_m:.1f} m, alt {float(self.alt_m.min()):g}..{float(self.alt_m.max()):g} m, "
                 f"speed {float(self.speed_m_s_table.min()):g}..{float(self.speed_m_s_table.max()):g} m/s)")
 
-    def _interp(self, table: list, s_m: float) -> float:
+    def _interp(self, table: list[float], s_m: float) -> float:
         if not math.isfinite(s_m):
             s_m = 0.0
         if self.closed:
@@ -145,17 +150,22 @@ class PathProfile:
 
     def climb_table_m_s(self) -> np.ndarray:
         """Climb rate at every node of the table."""
-        return self.speed_m_s_table * self.slope_table
+        climb: np.ndarray = self.speed_m_s_table * self.slope_table
+        return climb
 
 
 # ------------------------------------------------------------------------------ construction
+#: A target height or speed: one number, or a function of the grid's arc lengths (numpy array).
+ProfileTarget = Union[float, Callable[[np.ndarray], npt.ArrayLike]]
+
+
 def grid(length_m: float) -> np.ndarray:
     """The uniform arc-length grid of a profile over ``[0, length_m]``."""
     n = int(min(MAX_SAMPLES, max(2001, math.ceil(length_m / GRID_M) + 1)))
     return np.linspace(0.0, length_m, n)
 
 
-def knots_table(s_grid: np.ndarray, knots_s_m, values, closed: bool, length_m: float,
+def knots_table(s_grid: np.ndarray, knots_s_m: npt.ArrayLike, values: npt.ArrayLike, closed: bool, length_m: float,
                 step: bool) -> np.ndarray:
     """Values at knots (arc lengths, increasing) on the grid: linear interpolation, or held
     from each knot to the next (``step``). Open paths hold the first and last values beyond the
@@ -170,16 +180,19 @@ def knots_table(s_grid: np.ndarray, knots_s_m, values, closed: bool, length_m: f
         kv = np.concatenate(([kv[-1]], kv, [kv[0]]))
     if step:
         idx = np.searchsorted(ks, s_grid, side="right") - 1
-        return kv[np.clip(idx, 0, kv.size - 1)]
-    return np.interp(s_grid, ks, kv)
+        held: np.ndarray = kv[np.clip(idx, 0, kv.size - 1)]
+        return held
+    interpolated: np.ndarray = np.interp(s_grid, ks, kv)
+    return interpolated
 
 
 def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: float,
                 closed: bool) -> np.ndarray:
     """Rate-limit a target speed along the path: ``|d(V^2)/ds| <= 2 a`` (forward pass)."""
-    target2 = np.asarray(target_m_s, dtype=float) ** 2
+    target2: np.ndarray = np.asarray(target_m_s, dtype=float) ** 2
     if np.all(target2 == target2[0]):
-        return np.sqrt(target2)
+        constant: np.ndarray = np.sqrt(target2)
+        return constant
     step = 2.0 * accel_max_m_s2 * (s_grid[1] - s_grid[0])
     laps = 2 if closed else 1
     out = target2.copy()
@@ -195,10 +208,11 @@ def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: floa
             prev = want
         out = np.asarray(o)
         v2 = out[-1]
-    return np.sqrt(out)
+    limited: np.ndarray = np.sqrt(out)
+    return limited
 
 
-def _clip_pass(target: list, up: list, down: list, start: float) -> list:
+def _clip_pass(target: list[float], up: list[float], down: list[float], start: float) -> list[float]:
     out = [0.0] * len(target)
     h = start
     for i, want in enumerate(target):
@@ -213,15 +227,16 @@ def rate_limited(target_m: np.ndarray, up_m: np.ndarray, down_m: np.ndarray, clo
     up, down = np.asarray(up_m, dtype=float), np.asarray(down_m, dtype=float)
     if closed:  # two laps settle the periodic solution; keep the second
         t2, u2, d2 = np.tile(t, 2), np.tile(up, 2), np.tile(down, 2)
-        fwd = np.asarray(_clip_pass(t2.tolist(), u2.tolist(), d2.tolist(), float(t[0])))[t.size:]
+        fwd: np.ndarray = np.asarray(_clip_pass(t2.tolist(), u2.tolist(), d2.tolist(), float(t[0])))[t.size:]
         # Backwards a climb is a descent: the roles of up and down swap.
-        bwd = np.asarray(_clip_pass(t2[::-1].tolist(), d2[::-1].tolist(), u2[::-1].tolist(),
+        bwd: np.ndarray = np.asarray(_clip_pass(t2[::-1].tolist(), d2[::-1].tolist(), u2[::-1].tolist(),
                                     float(t[-1])))[t.size:][::-1]
     else:
         fwd = np.asarray(_clip_pass(t.tolist(), up.tolist(), down.tolist(), float(t[0])))
         bwd = np.asarray(_clip_pass(t[::-1].tolist(), down[::-1].tolist(), up[::-1].tolist(),
                                     float(t[-1])))[::-1]
-    return 0.5 * (fwd + bwd)
+    mean: np.ndarray = 0.5 * (fwd + bwd)
+    return mean
 
 
 def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndarray:
@@ -229,7 +244,8 @@ def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndar
     open table, which keeps the end values; periodic when closed)."""
     v = np.asarray(values, dtype=float)
     if half_width <= 0:
-        return v.copy()
+        unchanged: np.ndarray = v.copy()
+        return unchanged
     if closed:
         core = v[:-1]  # the last node repeats the first
         reps = half_width // core.size + 1
@@ -265,7 +281,8 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
     """The flyable height table for ``target_m`` at speeds ``speed_m_s`` (module docstring)."""
     target = np.asarray(target_m, dtype=float)
     if np.all(target == target[0]):
-        return target.copy()
+        flat: np.ndarray = target.copy()
+        return flat
     ds = float(s_grid[1] - s_grid[0])
     v = np.asarray(speed_m_s, dtype=float)
     # A relative margin of 1e-6 absorbs the rounding of the tables and their interpolation.
@@ -291,7 +308,7 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
 
 
 def build_profile(length_m: float, closed: bool, limits: ProfileLimits, *,
-                  alt_target=None, speed_target=None) -> PathProfile:
+                  alt_target: ProfileTarget, speed_target: ProfileTarget) -> PathProfile:
     """A :class:`PathProfile` from target functions of the grid.
 
     ``alt_target`` and ``speed_target`` are each a number, or a callable taking the grid (arc
@@ -299,9 +316,10 @@ def build_profile(length_m: float, closed: bool, limits: ProfileLimits, *,
     """
     s = grid(length_m)
 
-    def on_grid(target):
+    def on_grid(target: ProfileTarget) -> np.ndarray:
         if callable(target):
-            return np.asarray(target(s), dtype=float) * np.ones_like(s)
+            values: np.ndarray = np.asarray(target(s), dtype=float) * np.ones_like(s)
+            return values
         return np.full_like(s, float(target))
 
     v = speed_table(s, on_grid(speed_target), limits.along_accel_max_m_s2, closed)

@@ -15,8 +15,10 @@ they fly exactly as before.
 from __future__ import annotations
 
 import math
+from typing import Any
 
-from companion.guidance.types import GuidanceOutput, VehicleState, frozen_maker
+from companion.geometry.profile import PathProfile
+from companion.guidance.types import GuidanceLaw, GuidanceOutput, VehicleState, frozen_maker
 
 _vehicle_state = frozen_maker(VehicleState)
 
@@ -24,12 +26,12 @@ _vehicle_state = frozen_maker(VehicleState)
 class ProfiledGuidance:
     """``law`` flown at the profile's local speed; every other attribute is the law's."""
 
-    def __init__(self, law, profile):
+    def __init__(self, law: GuidanceLaw, profile: PathProfile):
         self.law = law
         self.profile = profile
         self._s_m = 0.0
 
-    def __getattr__(self, name):  # params, path, phase... of the wrapped law
+    def __getattr__(self, name: str) -> Any:  # params, path, phase... of the wrapped law
         return getattr(self.law, name)
 
     @property
