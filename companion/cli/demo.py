@@ -12,7 +12,8 @@ import math
 import time
 from pathlib import Path
 
-from companion.cli.fly import add_flight_options, format_loop_line, format_metrics_table, json_safe, options_from_args
+from companion.cli.fly import (add_flight_options, fly_keeping_error, format_loop_line, format_metrics_table, json_safe,
+                               options_from_args)
 from companion.errors import CompanionError
 from companion.io.mock_process import MockProcess, free_udp_port, mock_start_args
 
@@ -102,12 +103,8 @@ def run(args) -> int:
     status.event(f"mock autopilot started ({args.autopilot} {args.vehicle}, speedup {args.speedup:g}) "
                  f"on udp port {port}")
     runner = FlightRunner(mission, options, status)
-    error: CompanionError | None = None
     try:
-        summary = runner.run()
-    except CompanionError as err:
-        error = err
-        summary = runner.summary
+        summary, error = fly_keeping_error(runner)
     finally:
         mock.stop()
     wall_s = time.monotonic() - wall0

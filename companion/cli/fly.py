@@ -137,6 +137,15 @@ def format_loop_line(summary: dict) -> str:
             f"{summary.get('setpoints_sent', 0)} setpoints sent; rejected packets: {rej_text}")
 
 
+def fly_keeping_error(runner) -> tuple[dict, CompanionError | None]:
+    """Run the flight; on a :class:`CompanionError` keep it and the summary so far (the caller
+    still prints the summary and writes the plot before reporting the error)."""
+    try:
+        return runner.run(), None
+    except CompanionError as err:
+        return runner.summary, err
+
+
 def run(args) -> int:
     from companion.loop.runner import FlightRunner, Status
     from companion.mission import load_mission
@@ -144,12 +153,7 @@ def run(args) -> int:
     mission = load_mission(args.mission)
     options = options_from_args(args, mission)
     runner = FlightRunner(mission, options, Status(quiet=args.quiet))
-    error: CompanionError | None = None
-    try:
-        summary = runner.run()
-    except CompanionError as err:
-        error = err
-        summary = runner.summary
+    summary, error = fly_keeping_error(runner)
     if args.json:
         out = dict(summary)
         out["plot"] = None

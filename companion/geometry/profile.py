@@ -43,6 +43,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.ndimage import maximum_filter1d
 
+from companion.geometry.checks import require_positive_finite
+
 #: Grid spacing of the profile tables (finer for short paths; at most MAX_SAMPLES nodes).
 GRID_M = 0.05
 MAX_SAMPLES = 400_001
@@ -66,11 +68,8 @@ class ProfileLimits:
     alt_gain_1_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("climb_max_m_s", "sink_max_m_s", "vert_accel_max_m_s2", "along_accel_max_m_s2",
-                     "alt_gain_1_s"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+        require_positive_finite(self, ("climb_max_m_s", "sink_max_m_s", "vert_accel_max_m_s2",
+                                       "along_accel_max_m_s2", "alt_gain_1_s"))
 
 
 class PathProfile:
