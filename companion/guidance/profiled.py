@@ -8,7 +8,7 @@ handing it ``V(s)`` at the arc length of the previous tick's projection (the sta
 first projection, and through the mid-course phase, which reports ``s = 0``). One tick of delay
 in ``s`` is ``V dt`` metres, over which the profile changes by at most ``a_long dt`` m/s.
 
-Missions at one constant speed are not wrapped (:func:`companion.loop.runner.make_guidance`), so
+Missions at one constant speed are not wrapped (:func:`companion.loop.driver.make_guidance`), so
 they fly exactly as before.
 """
 
