@@ -103,22 +103,10 @@ def flight_figure(
     """
     plt = pyplot()
     t = np.asarray(t_s, dtype=float)
-    x = np.asarray(x_m, dtype=float)
-    y = np.asarray(y_m, dtype=float)
     fig = plt.figure(figsize=(12, 7) if altitude is None else (12, 9.5))
     ax_xy = fig.add_subplot(1, 2, 1) if altitude is None else fig.add_subplot(3, 2, (1, 3))
-    if path is not None:
-        _, px, py = path.sample(1000)
-        ax_xy.plot(px, py, "k--", lw=1, label="path")
-    ax_xy.plot(x, y, "b-", lw=1.5, label=track_label)
-    if x.size:
-        ax_xy.plot(x[0], y[0], "go", label="start")
-    ax_xy.set_xlabel("x east (m)")
-    ax_xy.set_ylabel("y north (m)")
-    ax_xy.set_aspect("equal", adjustable="datalim")
-    ax_xy.legend(loc="best", fontsize=8)
-    ax_xy.set_title(title, fontsize=10)
-
+    _track_panel(ax_xy, path, np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float), title,
+                 track_label)
     if altitude is None:
         ax_d = fig.add_subplot(2, 2, 2)
         ax_a = fig.add_subplot(2, 2, 4, sharex=ax_d)
@@ -128,12 +116,7 @@ def flight_figure(
         profile, s_m, alt_m = altitude
         profile_panel(fig.add_subplot(3, 2, 5), profile, s_m, alt_m)
     if t.size:
-        seen: set[str] = set()
-        for t0, t1, name in phase_spans(t, phases):
-            for ax in (ax_d, ax_a):
-                ax.axvspan(t0, t1, color=PHASE_COLOURS.get(name, "#eeeeee"), lw=0,
-                           label=name if (ax is ax_d and name not in seen) else None)
-            seen.add(name)
+        _shade_phases((ax_d, ax_a), t, phases)
     ax_d.plot(t, np.asarray(crosstrack_m, dtype=float), "b-", lw=1)
     ax_d.set_ylabel("cross-track error (m, left +)")
     ax_a.plot(t, np.asarray(a_cmd_m_s2, dtype=float), "r-", lw=1.2, label="a_cmd")
@@ -154,6 +137,31 @@ def flight_figure(
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+def _track_panel(ax_xy, path, x: np.ndarray, y: np.ndarray, title: str, track_label: str) -> None:
+    """The path (when given) and the track in the ENU plane, the start marked."""
+    if path is not None:
+        _, px, py = path.sample(1000)
+        ax_xy.plot(px, py, "k--", lw=1, label="path")
+    ax_xy.plot(x, y, "b-", lw=1.5, label=track_label)
+    if x.size:
+        ax_xy.plot(x[0], y[0], "go", label="start")
+    ax_xy.set_xlabel("x east (m)")
+    ax_xy.set_ylabel("y north (m)")
+    ax_xy.set_aspect("equal", adjustable="datalim")
+    ax_xy.legend(loc="best", fontsize=8)
+    ax_xy.set_title(title, fontsize=10)
+
+
+def _shade_phases(axes, t: np.ndarray, phases: Sequence[str]) -> None:
+    """Each guidance phase shaded on the time panels; its name in the first panel's legend once."""
+    seen: set[str] = set()
+    for t0, t1, name in phase_spans(t, phases):
+        for ax in axes:
+            ax.axvspan(t0, t1, color=PHASE_COLOURS.get(name, "#eeeeee"), lw=0,
+                       label=name if (ax is axes[0] and name not in seen) else None)
+        seen.add(name)
 
 
 def profile_panel(ax, profile, s_m: Sequence[float] | None = None, alt_m: Sequence[float] | None = None):

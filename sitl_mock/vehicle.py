@@ -234,11 +234,7 @@ class VehicleModel:
         p = self.params
         s = self.state
         if grounded and s.on_ground:
-            s.vel_ned_m_s = [0.0, 0.0, 0.0]
-            s.acc_ned_m_s2 = [0.0, 0.0, 0.0]
-            s.yaw_rate_rad_s = 0.0
-            s.t_s += dt_s
-            self._draw_noise()
+            self._stay_on_ground(dt_s)
             return
         vel_cmd_ned_m_s, yaw_rate_cmd_rad_s = self._delayed(vel_cmd_ned_m_s, yaw_rate_cmd_rad_s)
         k = _lag_gain(dt_s, p.tau_vel_s)
@@ -269,19 +265,12 @@ class VehicleModel:
             dvy = (ay + (dvy / dt_s - ay) * ka) * dt_s
         s.acc_ned_m_s2 = [dvx / dt_s, dvy / dt_s, dvz / dt_s]
         v_new = [v[0] + dvx, v[1] + dvy, 0.0 if p.kind == "rover" else v[2] + dvz]
-        # Trapezoidal position update: exact for constant acceleration over the step.
-        for i in range(3):
-            s.pos_ned_m[i] += 0.5 * (v[i] + v_new[i]) * dt_s
+        self._move(v, v_new, dt_s)
         s.vel_ned_m_s = v_new
         if p.kind == "rover":
             s.pos_ned_m[2] = 0.0
-        elif s.pos_ned_m[2] >= 0.0 and s.vel_ned_m_s[2] >= 0.0:
-            # Touching the ground: vertical motion stops there.
-            s.pos_ned_m[2] = 0.0
-            s.vel_ned_m_s[2] = 0.0
-            s.on_ground = True
-        elif s.pos_ned_m[2] < -0.05:
-            s.on_ground = False
+        else:
+            self._ground_contact(liftoff_m=0.05)
         if s.on_ground and p.kind == "copter":
             # A copter sitting on the ground does not slide about.
             s.vel_ned_m_s[0] = s.vel_ned_m_s[1] = 0.0
@@ -325,13 +314,9 @@ class VehicleModel:
         p = self.params
         s = self.state
         if grounded and s.on_ground:
-            s.vel_ned_m_s = [0.0, 0.0, 0.0]
-            s.acc_ned_m_s2 = [0.0, 0.0, 0.0]
             s.airspeed_m_s = 0.0
             s.roll_rad = 0.0
-            s.yaw_rate_rad_s = 0.0
-            s.t_s += dt_s
-            self._draw_noise()
+            self._stay_on_ground(dt_s)
             return
         v_old = list(s.vel_ned_m_s)
         roll_cmd = max(-p.roll_max_rad, min(p.roll_max_rad, roll_cmd_rad))
@@ -351,18 +336,37 @@ class VehicleModel:
         vz = v_old[2] + (vz_cmd - v_old[2]) * _lag_gain(dt_s, p.tau_vel_s)
         self._set_plane_ground_velocity(vz)
         v_new = s.vel_ned_m_s
-        for i in range(3):
-            s.pos_ned_m[i] += 0.5 * (v_old[i] + v_new[i]) * dt_s
-        if s.pos_ned_m[2] >= 0.0 and s.vel_ned_m_s[2] >= 0.0:
-            s.pos_ned_m[2] = 0.0
-            s.vel_ned_m_s[2] = 0.0
-            s.on_ground = True
-        elif s.pos_ned_m[2] < -0.5:
-            s.on_ground = False
+        self._move(v_old, v_new, dt_s)
+        self._ground_contact(liftoff_m=0.5)
         s.acc_ned_m_s2 = [(v_new[i] - v_old[i]) / dt_s for i in range(3)]
         s.pitch_rad = math.atan2(-s.vel_ned_m_s[2], max(s.airspeed_m_s, 1e-6)) if s.airspeed_m_s > 0 else 0.0
         s.t_s += dt_s
         self._draw_noise()
+
+    def _stay_on_ground(self, dt_s: float) -> None:
+        """Motors off on the ground: no motion, no turning; time and the sensor noise go on."""
+        s = self.state
+        s.vel_ned_m_s = [0.0, 0.0, 0.0]
+        s.acc_ned_m_s2 = [0.0, 0.0, 0.0]
+        s.yaw_rate_rad_s = 0.0
+        s.t_s += dt_s
+        self._draw_noise()
+
+    def _move(self, v_old: list[float], v_new: list[float], dt_s: float) -> None:
+        """Trapezoidal position update: exact for constant acceleration over the step."""
+        pos = self.state.pos_ned_m
+        for i in range(3):
+            pos[i] += 0.5 * (v_old[i] + v_new[i]) * dt_s
+
+    def _ground_contact(self, liftoff_m: float) -> None:
+        """Touching the ground stops vertical motion there; ``liftoff_m`` above it counts as airborne."""
+        s = self.state
+        if s.pos_ned_m[2] >= 0.0 and s.vel_ned_m_s[2] >= 0.0:
+            s.pos_ned_m[2] = 0.0
+            s.vel_ned_m_s[2] = 0.0
+            s.on_ground = True
+        elif s.pos_ned_m[2] < -liftoff_m:
+            s.on_ground = False
 
     def _set_plane_ground_velocity(self, vz_m_s: float) -> None:
         s = self.state

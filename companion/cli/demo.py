@@ -14,6 +14,7 @@ from pathlib import Path
 
 from companion.cli.fly import (
     add_flight_options,
+    fly_keeping_error,
     health_options_from_args,
     options_from_args,
     print_flight_summary,
@@ -108,12 +109,8 @@ def run(args) -> int:
     status.event(f"mock autopilot started ({args.autopilot} {args.vehicle}, speedup {args.speedup:g}) "
                  f"on udp port {port}")
     runner = FlightRunner(mission, options, status)
-    error: BaseException | None = None
     try:
-        summary = runner.run()
-    except (CompanionError, KeyboardInterrupt) as err:  # print the figures so far, then report
-        error = err
-        summary = runner.summary
+        summary, error = fly_keeping_error(runner)
     finally:
         mock.stop()
     wall_s = time.monotonic() - wall0

@@ -177,6 +177,16 @@ def format_loop_line(summary: dict) -> str:
             f"{summary.get('setpoints_sent', 0)} setpoints sent; rejected packets: {rej_text}")
 
 
+def fly_keeping_error(runner) -> tuple[dict, BaseException | None]:
+    """Run the flight; on a :class:`CompanionError` or Ctrl-C keep it and the summary so far (the
+    runner has closed the tlog and summarised the flight: the caller prints the metrics, writes
+    the plot, then lets the error, or Ctrl-C with exit 130, go on to the one place that reports it)."""
+    try:
+        return runner.run(), None
+    except (CompanionError, KeyboardInterrupt) as err:
+        return runner.summary, err
+
+
 def run(args) -> int:
     from companion.loop.runner import FlightRunner, Status
     from companion.mission import load_mission
@@ -185,14 +195,7 @@ def run(args) -> int:
     health_options_from_args(args)  # bad thresholds: one line, exit 2, before anything opens
     options = options_from_args(args, mission)
     runner = FlightRunner(mission, options, Status(quiet=args.quiet))
-    error: BaseException | None = None
-    try:
-        summary = runner.run()
-    except (CompanionError, KeyboardInterrupt) as err:
-        # The runner has closed the tlog and summarised the flight so far: print it, then let
-        # the error (or Ctrl-C, exit 130) go on to the one place that reports it.
-        error = err
-        summary = runner.summary
+    summary, error = fly_keeping_error(runner)
     print_flight_summary(summary, args.json, error)
     if error is not None:
         raise error

@@ -42,6 +42,7 @@ import math
 from typing import Callable
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
 ArrayFn = Callable[[np.ndarray], np.ndarray]
@@ -57,6 +58,27 @@ PROJECT_WINDOW_FACTOR = 2.0
 PROJECT_WINDOW_MIN_M = 2.0
 # Coarse stride of the look-ahead scan.
 LOOKAHEAD_STRIDE_M = 0.5
+
+
+# (x_m, y_m, tx, ty, curvature_1_m) at one arc length: what :meth:`Path.frame` returns.
+PathFrame = tuple[float, float, float, float, float]
+_NO_FRAME: PathFrame = (math.nan, math.nan, math.nan, math.nan, math.nan)
+
+
+def _hermite_basis(u: float, h: float) -> tuple[float, float, float, float]:
+    """Cubic Hermite weights ``(h00, h10, h01, h11)`` at ``u`` in [0, 1] of an interval ``h`` long.
+
+    A value interpolates as ``h00 v0 + h10 d0 + h01 v1 + h11 d1`` (``d`` the arc-length
+    derivatives; ``h`` is folded into ``h10`` and ``h11``).
+
+    >>> _hermite_basis(0.0, 2.0), _hermite_basis(1.0, 2.0)
+    ((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
+    >>> _hermite_basis(0.5, 2.0)
+    (0.5, 0.25, 0.5, -0.25)
+    """
+    u2 = u * u
+    u3 = u2 * u
+    return 2 * u3 - 3 * u2 + 1, (u3 - 2 * u2 + u) * h, -2 * u3 + 3 * u2, (u3 - u2) * h
 
 
 # Over 300 lines on purpose: this is the whole path contract of docs/architecture.md (point,
@@ -78,7 +100,8 @@ class Path:
         (numpy arrays, read-only), also convenient for plotting.
     """
 
-    def __init__(self, s_m, x_m, y_m, tx, ty, k_1_m, closed: bool):
+    def __init__(self, s_m: npt.ArrayLike, x_m: npt.ArrayLike, y_m: npt.ArrayLike, tx: npt.ArrayLike,
+                 ty: npt.ArrayLike, k_1_m: npt.ArrayLike, closed: bool):
         s = np.asarray(s_m, dtype=float)
         if s.ndim != 1 or s.size < 3:
             raise ValueError("path table: expected at least 3 nodes")
@@ -103,11 +126,11 @@ class Path:
         self.ty_table = arrays["ty"]
         self.k_table_1_m = arrays["k"]
         # Python lists: scalar indexing of a list is several times cheaper than of an ndarray.
-        self._x = self.x_table_m.tolist()
-        self._y = self.y_table_m.tolist()
-        self._tx = self.tx_table.tolist()
-        self._ty = self.ty_table.tolist()
-        self._k = self.k_table_1_m.tolist()
+        self._x: list[float] = self.x_table_m.tolist()
+        self._y: list[float] = self.y_table_m.tolist()
+        self._tx: list[float] = self.tx_table.tolist()
+        self._ty: list[float] = self.ty_table.tolist()
+        self._k: list[float] = self.k_table_1_m.tolist()
         # Interval table for the vectorised queries: row i holds, for interval i, the cubic
         # polynomials in u of the point (x, y), of the unnormalised tangent (ax, ay) and of the
         # curvature, as Horner coefficients ``coef[i, p, :]`` of ``u**p``: the Hermite forms of
@@ -118,7 +141,8 @@ class Path:
         # The last two frames evaluated, as (s, frame, s, frame): a tick asks for the frames of the
         # projection and of the look-ahead point, which the searches that found them have just
         # evaluated, and the next tick starts its searches from the same two points.
-        self._memo = (math.nan, None, math.nan, None)
+        # A NaN arc length never compares equal, so the empty slots are never returned.
+        self._memo: tuple[float, PathFrame, float, PathFrame] = (math.nan, _NO_FRAME, math.nan, _NO_FRAME)
         self.start_xy_m = (self._x[0], self._y[0])
         self.start_heading_rad = math.atan2(self._ty[0], self._tx[0])
         self.end_xy_m = (self._x[-1], self._y[-1])
@@ -152,13 +176,7 @@ class Path:
     def point(self, s_m: float) -> tuple[float, float]:
         """The point ``(x_m, y_m)`` at arc length ``s_m`` (clamped to the ends of an open path)."""
         i, u = self._locate(s_m)
-        h = self._h
-        u2 = u * u
-        u3 = u2 * u
-        h00 = 2 * u3 - 3 * u2 + 1
-        h10 = (u3 - 2 * u2 + u) * h
-        h01 = -2 * u3 + 3 * u2
-        h11 = (u3 - u2) * h
+        h00, h10, h01, h11 = _hermite_basis(u, self._h)
         x, y, tx, ty = self._x, self._y, self._tx, self._ty
         return (h00 * x[i] + h10 * tx[i] + h01 * x[i + 1] + h11 * tx[i + 1],
                 h00 * y[i] + h10 * ty[i] + h01 * y[i + 1] + h11 * ty[i + 1])
@@ -169,13 +187,7 @@ class Path:
         return self._tangent_iu(i, u)
 
     def _tangent_iu(self, i: int, u: float) -> tuple[float, float]:
-        h = self._h
-        u2 = u * u
-        u3 = u2 * u
-        h00 = 2 * u3 - 3 * u2 + 1
-        h10 = (u3 - 2 * u2 + u) * h
-        h01 = -2 * u3 + 3 * u2
-        h11 = (u3 - u2) * h
+        h00, h10, h01, h11 = _hermite_basis(u, self._h)
         tx, ty, k = self._tx, self._ty, self._k
         # d(tx)/ds = -k ty, d(ty)/ds = k tx (Frenet).
         ax = h00 * tx[i] - h10 * k[i] * ty[i] + h01 * tx[i + 1] - h11 * k[i + 1] * ty[i + 1]
@@ -219,7 +231,7 @@ class Path:
         tx, ty = self.tangent(s_m)
         return math.atan2(ty, tx)
 
-    def frame(self, s_m: float) -> tuple[float, float, float, float, float]:
+    def frame(self, s_m: float) -> PathFrame:
         """``(x_m, y_m, tx, ty, curvature_1_m)`` at ``s_m`` in one call (saves work on the hot path).
 
         The last two frames are remembered: asking again for either costs a comparison.
@@ -230,13 +242,7 @@ class Path:
         if s_m == memo[2]:
             return memo[3]
         i, u = self._locate(s_m)
-        h = self._h
-        u2 = u * u
-        u3 = u2 * u
-        h00 = 2 * u3 - 3 * u2 + 1
-        h10 = (u3 - 2 * u2 + u) * h
-        h01 = -2 * u3 + 3 * u2
-        h11 = (u3 - u2) * h
+        h00, h10, h01, h11 = _hermite_basis(u, self._h)
         x, y, tx, ty, k = self._x, self._y, self._tx, self._ty, self._k
         px = h00 * x[i] + h10 * tx[i] + h01 * x[i + 1] + h11 * tx[i + 1]
         py = h00 * y[i] + h10 * ty[i] + h01 * y[i + 1] + h11 * ty[i + 1]
@@ -304,7 +310,7 @@ class Path:
         return self._refine_projection(x_m, y_m, j)
 
     def _newton_projection(self, x_m: float, y_m: float, s_hint: float, window_m: float,
-                           first: tuple | None = None) -> float | None:
+                           first: PathFrame | None = None) -> float | None:
         """Closest point by Newton from the hint: the local minimum of the distance the hint is in.
 
         ``first`` is ``frame(wrap(s_hint))`` when the caller has it. Returns None (the caller
@@ -450,7 +456,7 @@ class Path:
         return 0.5 * (a + b)
 
     # ------------------------------------------------------------------ vectorised queries
-    def _locate_array(self, s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _locate_array(self, s_m: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         s = np.asarray(s_m, dtype=float)
         if self.closed:
             s = np.mod(s, self.length_m)
@@ -460,17 +466,17 @@ class Path:
         i = np.minimum(q.astype(np.intp), self._n - 1)
         return i, q - i
 
-    def point_array(self, s_m) -> tuple[np.ndarray, np.ndarray]:
+    def point_array(self, s_m: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`point`: arrays ``x_m, y_m`` for an array of arc lengths."""
         x, y, _, _, _ = self.frame_array(s_m)
         return x, y
 
-    def tangent_array(self, s_m) -> tuple[np.ndarray, np.ndarray]:
+    def tangent_array(self, s_m: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`tangent`."""
         _, _, tx, ty, _ = self.frame_array(s_m)
         return tx, ty
 
-    def frame_array(self, s_m) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def frame_array(self, s_m: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Vectorised :meth:`frame`: arrays ``(x_m, y_m, tx, ty, curvature_1_m)``.
 
         The same cubic Hermite interpolants as :meth:`frame`, evaluated from the per-interval
@@ -489,7 +495,7 @@ class Path:
         norm = np.hypot(ax, ay)
         return r[..., 0], r[..., 1], ax / norm, ay / norm, r[..., 4]
 
-    def curvature_array(self, s_m) -> np.ndarray:
+    def curvature_array(self, s_m: npt.ArrayLike) -> np.ndarray:
         """Vectorised :meth:`curvature`."""
         return self.frame_array(s_m)[4]
 
@@ -502,7 +508,8 @@ class Path:
         return s, x, y
 
 
-def _hermite_coefficients(x, y, tx, ty, k, h: float) -> np.ndarray:
+def _hermite_coefficients(x: np.ndarray, y: np.ndarray, tx: np.ndarray, ty: np.ndarray, k: np.ndarray,
+                          h: float) -> np.ndarray:
     """Per-interval monomial coefficients of the table's cubic Hermite interpolants.
 
     For interval ``i`` (nodes ``i`` and ``i + 1``, local coordinate ``u`` in [0, 1]) a value
@@ -511,7 +518,7 @@ def _hermite_coefficients(x, y, tx, ty, k, h: float) -> np.ndarray:
     Columns: x and y (derivative the tangent), the unnormalised tangent ax, ay (derivatives
     ``-k ty`` and ``k tx``, Frenet) and the curvature (linear). Shape ``(n, 4, 5)``.
     """
-    def cubic(v, d):
+    def cubic(v: np.ndarray, d: np.ndarray) -> np.ndarray:
         v0, v1, d0, d1 = v[:-1], v[1:], d[:-1] * h, d[1:] * h
         return np.stack([v0, d0, 3.0 * (v1 - v0) - 2.0 * d0 - d1, 2.0 * (v0 - v1) + d0 + d1], axis=1)
 
@@ -644,7 +651,7 @@ def parametric_path(x_of_u: ArrayFn, y_of_u: ArrayFn, u_range: tuple[float, floa
                                u0, u1, closed, "parametric path")
 
 
-def waypoint_path(points_xy_m, closed: bool = False) -> Path:
+def waypoint_path(points_xy_m: npt.ArrayLike, closed: bool = False) -> Path:
     """A C^2 cubic spline through waypoints, parameterised by chord length, then by arc length.
 
     Parameters

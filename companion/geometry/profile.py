@@ -40,12 +40,10 @@ from dataclasses import dataclass
 from typing import Callable, Union
 
 import numpy as np
-from numpy.typing import ArrayLike
+import numpy.typing as npt
 from scipy.ndimage import maximum_filter1d
 
-#: A profile target: one number, or a function of the arc-length grid (numpy array) giving the
-#: target on it; None where the caller has none (one constant).
-ProfileTarget = Union[float, Callable[[np.ndarray], ArrayLike], None]
+from companion.geometry.checks import require_positive_finite
 
 #: Grid spacing of the profile tables (finer for short paths; at most MAX_SAMPLES nodes).
 GRID_M = 0.05
@@ -70,11 +68,8 @@ class ProfileLimits:
     alt_gain_1_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("climb_max_m_s", "sink_max_m_s", "vert_accel_max_m_s2", "along_accel_max_m_s2",
-                     "alt_gain_1_s"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+        require_positive_finite(self, ("climb_max_m_s", "sink_max_m_s", "vert_accel_max_m_s2",
+                                       "along_accel_max_m_s2", "alt_gain_1_s"))
 
 
 class PathProfile:
@@ -88,8 +83,8 @@ class PathProfile:
     constant_speed, constant_altitude : True when that table is one value.
     """
 
-    def __init__(self, s_m: ArrayLike, alt_m: ArrayLike, speed_m_s: ArrayLike, closed: bool,
-                 limits: ProfileLimits) -> None:
+    def __init__(self, s_m: npt.ArrayLike, alt_m: npt.ArrayLike, speed_m_s: npt.ArrayLike, closed: bool,
+                 limits: ProfileLimits):
         s = np.asarray(s_m, dtype=float)
         h = np.asarray(alt_m, dtype=float)
         v = np.asarray(speed_m_s, dtype=float)
@@ -101,14 +96,16 @@ class PathProfile:
         self.closed = bool(closed)
         self.limits = limits
         self._ds = self.length_m / (s.size - 1)
-        g = np.gradient(h, self._ds)
+        g: np.ndarray = np.gradient(h, self._ds)
         for arr in (s, h, v, g):
             arr.setflags(write=False)
         self.s_m, self.alt_m, self.speed_m_s_table, self.slope_table = s, h, v, g
         self.constant_speed = bool(np.all(v == v[0]))
         self.constant_altitude = bool(np.all(h == h[0]))
         # Python lists: the flight loop asks one value per tick.
-        self._h, self._v, self._g = h.tolist(), v.tolist(), g.tolist()
+        self._h: list[float] = h.tolist()
+        self._v: list[float] = v.tolist()
+        self._g: list[float] = g.tolist()
 
     def __repr__(self) -> str:
         return (f"PathProfile({self.length_m:.1f} m, alt {float(self.alt_m.min()):g}..{float(self.alt_m.max()):g} m, "
@@ -124,7 +121,7 @@ class PathProfile:
         u = s_m / self._ds
         i = min(int(u), len(table) - 2)
         f = u - i
-        return float(table[i] + (table[i + 1] - table[i]) * f)
+        return table[i] + (table[i + 1] - table[i]) * f
 
     def altitude_m(self, s_m: float) -> float:
         """Height of the profile at arc length ``s_m`` (clamped to the ends; wrapped when closed)."""
@@ -144,25 +141,30 @@ class PathProfile:
 
     @property
     def start_altitude_m(self) -> float:
-        return float(self._h[0])
+        return self._h[0]
 
     @property
     def end_altitude_m(self) -> float:
-        return float(self._h[-1])
+        return self._h[-1]
 
     def climb_table_m_s(self) -> np.ndarray:
         """Climb rate at every node of the table."""
-        return np.asarray(self.speed_m_s_table * self.slope_table, dtype=float)
+        climb: np.ndarray = self.speed_m_s_table * self.slope_table
+        return climb
 
 
 # ------------------------------------------------------------------------------ construction
+#: A target height or speed: one number, or a function of the grid's arc lengths (numpy array).
+ProfileTarget = Union[float, Callable[[np.ndarray], npt.ArrayLike]]
+
+
 def grid(length_m: float) -> np.ndarray:
     """The uniform arc-length grid of a profile over ``[0, length_m]``."""
     n = int(min(MAX_SAMPLES, max(2001, math.ceil(length_m / GRID_M) + 1)))
     return np.linspace(0.0, length_m, n)
 
 
-def knots_table(s_grid: np.ndarray, knots_s_m: ArrayLike, values: ArrayLike, closed: bool, length_m: float,
+def knots_table(s_grid: np.ndarray, knots_s_m: npt.ArrayLike, values: npt.ArrayLike, closed: bool, length_m: float,
                 step: bool) -> np.ndarray:
     """Values at knots (arc lengths, increasing) on the grid: linear interpolation, or held
     from each knot to the next (``step``). Open paths hold the first and last values beyond the
@@ -177,16 +179,19 @@ def knots_table(s_grid: np.ndarray, knots_s_m: ArrayLike, values: ArrayLike, clo
         kv = np.concatenate(([kv[-1]], kv, [kv[0]]))
     if step:
         idx = np.searchsorted(ks, s_grid, side="right") - 1
-        return kv[np.clip(idx, 0, kv.size - 1)]
-    return np.asarray(np.interp(s_grid, ks, kv), dtype=float)
+        held: np.ndarray = kv[np.clip(idx, 0, kv.size - 1)]
+        return held
+    interpolated: np.ndarray = np.interp(s_grid, ks, kv)
+    return interpolated
 
 
 def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: float,
                 closed: bool) -> np.ndarray:
     """Rate-limit a target speed along the path: ``|d(V^2)/ds| <= 2 a`` (forward pass)."""
-    target2 = np.asarray(target_m_s, dtype=float) ** 2
+    target2: np.ndarray = np.asarray(target_m_s, dtype=float) ** 2
     if np.all(target2 == target2[0]):
-        return np.asarray(np.sqrt(target2), dtype=float)
+        constant: np.ndarray = np.sqrt(target2)
+        return constant
     step = 2.0 * accel_max_m_s2 * (s_grid[1] - s_grid[0])
     laps = 2 if closed else 1
     out = target2.copy()
@@ -202,7 +207,8 @@ def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: floa
             prev = want
         out = np.asarray(o)
         v2 = out[-1]
-    return np.asarray(np.sqrt(out), dtype=float)
+    limited: np.ndarray = np.sqrt(out)
+    return limited
 
 
 def _clip_pass(target: list[float], up: list[float], down: list[float], start: float) -> list[float]:
@@ -220,15 +226,16 @@ def rate_limited(target_m: np.ndarray, up_m: np.ndarray, down_m: np.ndarray, clo
     up, down = np.asarray(up_m, dtype=float), np.asarray(down_m, dtype=float)
     if closed:  # two laps settle the periodic solution; keep the second
         t2, u2, d2 = np.tile(t, 2), np.tile(up, 2), np.tile(down, 2)
-        fwd = np.asarray(_clip_pass(t2.tolist(), u2.tolist(), d2.tolist(), float(t[0])))[t.size:]
+        fwd: np.ndarray = np.asarray(_clip_pass(t2.tolist(), u2.tolist(), d2.tolist(), float(t[0])))[t.size:]
         # Backwards a climb is a descent: the roles of up and down swap.
-        bwd = np.asarray(_clip_pass(t2[::-1].tolist(), d2[::-1].tolist(), u2[::-1].tolist(),
+        bwd: np.ndarray = np.asarray(_clip_pass(t2[::-1].tolist(), d2[::-1].tolist(), u2[::-1].tolist(),
                                     float(t[-1])))[t.size:][::-1]
     else:
         fwd = np.asarray(_clip_pass(t.tolist(), up.tolist(), down.tolist(), float(t[0])))
         bwd = np.asarray(_clip_pass(t[::-1].tolist(), down[::-1].tolist(), up[::-1].tolist(),
                                     float(t[-1])))[::-1]
-    return np.asarray(0.5 * (fwd + bwd), dtype=float)
+    mean: np.ndarray = 0.5 * (fwd + bwd)
+    return mean
 
 
 def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndarray:
@@ -236,7 +243,8 @@ def moving_average(values: np.ndarray, half_width: int, closed: bool) -> np.ndar
     open table, which keeps the end values; periodic when closed)."""
     v = np.asarray(values, dtype=float)
     if half_width <= 0:
-        return np.asarray(v.copy(), dtype=float)
+        unchanged: np.ndarray = v.copy()
+        return unchanged
     if closed:
         core = v[:-1]  # the last node repeats the first
         reps = half_width // core.size + 1
@@ -272,7 +280,8 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
     """The flyable height table for ``target_m`` at speeds ``speed_m_s`` (module docstring)."""
     target = np.asarray(target_m, dtype=float)
     if np.all(target == target[0]):
-        return np.asarray(target.copy(), dtype=float)
+        flat: np.ndarray = target.copy()
+        return flat
     ds = float(s_grid[1] - s_grid[0])
     v = np.asarray(speed_m_s, dtype=float)
     # A relative margin of 1e-6 absorbs the rounding of the tables and their interpolation.
@@ -298,7 +307,7 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
 
 
 def build_profile(length_m: float, closed: bool, limits: ProfileLimits, *,
-                  alt_target: ProfileTarget = None, speed_target: ProfileTarget = None) -> PathProfile:
+                  alt_target: ProfileTarget, speed_target: ProfileTarget) -> PathProfile:
     """A :class:`PathProfile` from target functions of the grid.
 
     ``alt_target`` and ``speed_target`` are each a number, or a callable taking the grid (arc
@@ -308,8 +317,9 @@ def build_profile(length_m: float, closed: bool, limits: ProfileLimits, *,
 
     def on_grid(target: ProfileTarget) -> np.ndarray:
         if callable(target):
-            return np.asarray(np.asarray(target(s), dtype=float) * np.ones_like(s), dtype=float)
-        return np.full_like(s, float(target))  # type: ignore[arg-type]
+            values: np.ndarray = np.asarray(target(s), dtype=float) * np.ones_like(s)
+            return values
+        return np.full_like(s, float(target))
 
     v = speed_table(s, on_grid(speed_target), limits.along_accel_max_m_s2, closed)
     h = altitude_table(s, on_grid(alt_target), v, limits, closed)

@@ -15,7 +15,6 @@ they fly exactly as before.
 from __future__ import annotations
 
 import math
-
 from typing import Any
 
 from companion.geometry.profile import PathProfile
@@ -27,7 +26,7 @@ _vehicle_state = frozen_maker(VehicleState)
 class ProfiledGuidance:
     """``law`` flown at the profile's local speed; every other attribute is the law's."""
 
-    def __init__(self, law: GuidanceLaw, profile: PathProfile) -> None:
+    def __init__(self, law: GuidanceLaw, profile: PathProfile):
         self.law = law
         self.profile = profile
         self._s_m = 0.0
@@ -42,7 +41,7 @@ class ProfiledGuidance:
 
     def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         local = _vehicle_state(state.x_m, state.y_m, state.course_rad, self.speed_m_s)
-        out: GuidanceOutput = self.law.step(t_s, local)
+        out = self.law.step(t_s, local)
         if math.isfinite(out.s_proj_m):
             self._s_m = out.s_proj_m
         return out

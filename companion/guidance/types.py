@@ -10,6 +10,8 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import Any, Callable, Protocol, TypeVar
 
+from companion.geometry.checks import require_positive_finite
+
 METHODS = ("fixed_l1", "corrector", "predictive")
 #: The law of a mission that names none (the mission schema's default).
 DEFAULT_METHOD = "predictive"
@@ -85,10 +87,7 @@ class GuidanceParams:
                 f"midcourse_trigger: expected one of {', '.join(MIDCOURSE_TRIGGERS)}, "
                 f"got {self.midcourse_trigger!r}"
             )
-        for name in ("l1_m", "speed_m_s", "rate_hz", "circle_radius_m", "d_limit_factor"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+        require_positive_finite(self, ("l1_m", "speed_m_s", "rate_hz", "circle_radius_m", "d_limit_factor"))
         for name in ("wind_x_m_s", "wind_y_m_s"):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):

@@ -124,8 +124,7 @@ class TlogWriter:
             self._file.write(struct.pack(">Q", usec) + bytes(packet))
             self.records += 1
         except OSError as err:
-            if self.write_error is None:
-                self.write_error = f"{self.path}: write failed ({err.strerror or err})"
+            self._note_write_error(err)
 
     def flush(self) -> None:
         if self._file is None:
@@ -133,8 +132,12 @@ class TlogWriter:
         try:
             self._file.flush()
         except OSError as err:
-            if self.write_error is None:
-                self.write_error = f"{self.path}: write failed ({err.strerror or err})"
+            self._note_write_error(err)
+
+    def _note_write_error(self, err: OSError) -> None:
+        """Keep the first failure for the summary; recording goes on (nothing is raised mid-flight)."""
+        if self.write_error is None:
+            self.write_error = f"{self.path}: write failed ({err.strerror or err})"
 
     def close(self) -> None:
         if self._file is None:

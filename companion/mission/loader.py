@@ -169,8 +169,18 @@ def check_mission_text(text: str, source_name: str = "<mission>"):
     return mission, problems, warnings
 
 
-class _Builder:
-    """Cross-key checks and construction, appending to ``problems`` instead of stopping."""
+@dataclasses.dataclass
+class _Knots:
+    """Where the profile lists give their values: arc lengths of the waypoints / segment ends."""
+
+    s_m: np.ndarray | None = None
+    key: str = ""  # "path.points_m" or "path.segments"
+    count: int = 0  # how many values a list must have
+    dropped_closing_point: bool = False
+
+
+class _Checks:
+    """What both builders share: the checked document, its frame, and where problems go."""
 
     def __init__(self, doc: dict, source: str, problems: list[str], warnings: list[str]):
         self.doc = doc
@@ -178,13 +188,6 @@ class _Builder:
         self.problems = problems
         self.warnings = warnings
         self.frame = doc.get("frame") or "local_enu"
-        self.path_schema_ok = True  # False when the schema already reported a problem in path
-        self.origin_absent = True  # False when the file has an origin key (even an unusable one)
-        # Where the profile lists give their values: arc lengths of the waypoints / segment ends.
-        self.knots_s_m: np.ndarray | None = None
-        self.knot_key = ""  # "path.points_m" or "path.segments"
-        self.knot_count = 0  # how many values a list must have
-        self.dropped_closing_point = False
 
     def problem(self, where: str, message: str) -> None:
         self.problems.append(f"{self.source}: {where}: {message}")
@@ -204,104 +207,15 @@ class _Builder:
             return math.radians(90.0 - heading_deg)
         return math.radians(heading_deg)
 
-    # --------------------------------------------------------------------- top level
-    def build(self, text: str) -> Mission | None:
-        doc = self.doc
-        origin = self.build_origin()
-        path = self.build_path(origin) if doc.get("path") and self.path_schema_ok else None
-        guidance = self.build_guidance()
-        start = self.build_start()
-        profile = None
-        if path is not None and guidance is not None:
-            self.check_path_against_guidance(path, guidance)
-            profile = self.build_profile(path)
-            if profile is not None and guidance.speed_m_s != profile.speed_m_s(0.0):
-                guidance = dataclasses.replace(guidance, speed_m_s=profile.speed_m_s(0.0))
-        if self.problems:
-            return None
-        return Mission(
-            name=doc["name"],
-            path=path,
-            speed_m_s=profile.speed_m_s(0.0) if profile is not None else doc["speed_m_s"],
-            altitude_m=profile.start_altitude_m if profile is not None else doc["altitude_m"],
-            guidance=guidance,
-            start=start,
-            on_finish=doc["on_finish"],
-            source_text=text,
-            source_name=self.source,
-            frame=self.frame,
-            origin=origin,
-            warnings=tuple(self.warnings),
-            profile=profile,
-            vehicle=self.build_vehicle(),
-        )
 
-    def build_vehicle(self) -> VehicleModel | None:
-        v = self.doc.get("vehicle")
-        if v is None or any(v.get(k) is None for k in VEHICLE_MODEL_KEYS):
-            return None  # absent, or already reported by the schema
-        return VehicleModel(**{k: v[k] for k in VEHICLE_MODEL_KEYS})
+class _PathBuilder(_Checks):
+    """The mission's path from ``path:`` (one method per path type), and its profile knots."""
 
-    def build_origin(self) -> GeodeticOrigin | None:
-        origin = self.doc.get("origin")
-        if self.frame == "geodetic":
-            if origin is None:  # absent (report it) or unusable (the schema reported it)
-                if self.doc.get("origin") is None and self.origin_absent:
-                    self.problem("origin", "missing; expected {lat_deg, lon_deg, alt_m} for frame: geodetic")
-                return None
-            if any(origin.get(k) is None for k in ("lat_deg", "lon_deg", "alt_m")):
-                return None
-            return GeodeticOrigin(origin["lat_deg"], origin["lon_deg"], origin["alt_m"])
-        if origin is not None:
-            self.problem("origin", f"expected no origin for frame: {self.frame} (only frame: geodetic "
-                         "has one)")
-        return None
+    def __init__(self, doc: dict, source: str, problems: list[str], warnings: list[str]):
+        super().__init__(doc, source, problems, warnings)
+        self.knots = _Knots()
 
-    def build_guidance(self) -> GuidanceParams | None:
-        g = self.doc.get("guidance") or {}
-        m = self.doc.get("midcourse") or {}
-        speed = self.doc.get("speed_m_s")
-        if isinstance(speed, list):  # a profile: the guidance starts at the first speed
-            speed = speed[0] if speed and all(v is not None for v in speed) else None
-        elif isinstance(speed, str):  # an expression of s: checked with the path
-            speed = 5.0
-        values = {
-            "method": g.get("method"), "l1_m": g.get("l1_m"), "rate_hz": g.get("rate_hz"),
-            "k1_max": g.get("k1_max"), "k2_max": g.get("k2_max"),
-            "d_limit_factor": g.get("d_limit_factor"), "circle_radius_m": m.get("circle_radius_m"),
-            "midcourse_trigger": m.get("trigger"), "speed_m_s": speed,
-        }
-        if any(v is None for v in values.values()):
-            return None  # already reported by the schema
-        if g.get("rollout_tau_s") is None or g.get("lambda_s4") is None:
-            return None  # already reported by the schema
-        values["rollout_tau_s"] = g["rollout_tau_s"]
-        values["lambda_s4"] = g["lambda_s4"]
-        # Absent: no limit. (An unusable value is None here too, but the schema reported it.)
-        values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
-        vehicle = self.doc.get("vehicle")
-        if vehicle is not None and None not in (vehicle.get("a_max_m_s2"), vehicle.get("lag_s")):
-            # A vehicle model: the rollouts assume its lag (plus its dead time) and the law never
-            # plans beyond its acceleration limit (docs/vehicle_model.md).
-            model = VehicleModel(**{k: vehicle[k] for k in VEHICLE_MODEL_KEYS})
-            values["rollout_tau_s"] = model.rollout_tau_s()
-            values["a_max_m_s2"] = min(float(values["a_max_m_s2"]), model.a_max_m_s2)
-            values["adapt_model"] = True
-        try:
-            return GuidanceParams(**values)
-        except ValueError as err:  # the schema's ranges should make this unreachable
-            self.problem("guidance", str(err))
-            return None
-
-    def build_start(self) -> StartState | None:
-        start = self.doc.get("start")
-        if start is None or any(start.get(k) is None for k in ("x_m", "y_m", "heading_deg")):
-            return None
-        x, y = self.to_enu_xy(start["x_m"], start["y_m"])
-        return StartState(float(x), float(y), self.to_enu_heading_rad(start["heading_deg"]))
-
-    # --------------------------------------------------------------------- paths
-    def build_path(self, origin: GeodeticOrigin | None) -> Path | None:
+    def build(self, origin: GeodeticOrigin | None) -> Path | None:
         p = self.doc["path"]
         kind = p.get("type")
         builder = getattr(self, f"path_{kind}", None)
@@ -438,7 +352,7 @@ class _Builder:
                 ok = False
         if closed and len(pts) > 1 and math.hypot(*(pts[-1] - pts[0])) < DUPLICATE_TOLERANCE_M:
             pts = pts[:-1]
-            self.dropped_closing_point = True
+            self.knots.dropped_closing_point = True
         distinct = len({(round(a / DUPLICATE_TOLERANCE_M), round(b / DUPLICATE_TOLERANCE_M)) for a, b in pts})
         need = 3 if closed else 2
         if ok and distinct < need:
@@ -461,9 +375,9 @@ class _Builder:
         else:
             path = waypoint_path(pts, closed=closed)
         if path is not None:
-            self.knots_s_m = waypoint_arc_lengths_m(path, pts)
-            self.knot_key = f"path.{key}"
-            self.knot_count = len(pts) + (1 if self.dropped_closing_point else 0)
+            self.knots.s_m = waypoint_arc_lengths_m(path, pts)
+            self.knots.key = f"path.{key}"
+            self.knots.count = len(pts) + (1 if self.knots.dropped_closing_point else 0)
         return path
 
     def path_segments(self, p: dict, origin) -> Path | None:
@@ -489,10 +403,116 @@ class _Builder:
             # Blending keeps every length: the segment ends are at the cumulative lengths.
             lengths = [it["length_m"] if it["type"] == "line" else it["radius_m"] * math.radians(abs(it["turn_deg"]))
                        for it in items]
-            self.knots_s_m = np.concatenate(([0.0], np.cumsum(lengths))) * (path.length_m / sum(lengths))
-            self.knot_key = "path.segments"
-            self.knot_count = len(items)
+            self.knots.s_m = np.concatenate(([0.0], np.cumsum(lengths))) * (path.length_m / sum(lengths))
+            self.knots.key = "path.segments"
+            self.knots.count = len(items)
         return path
+
+
+class _Builder(_Checks):
+    """Cross-key checks and construction, appending to ``problems`` instead of stopping."""
+
+    def __init__(self, doc: dict, source: str, problems: list[str], warnings: list[str]):
+        super().__init__(doc, source, problems, warnings)
+        self.path_schema_ok = True  # False when the schema already reported a problem in path
+        self.origin_absent = True  # False when the file has an origin key (even an unusable one)
+        self.paths = _PathBuilder(doc, source, problems, warnings)
+        self.knots = self.paths.knots
+
+    # --------------------------------------------------------------------- top level
+    def build(self, text: str) -> Mission | None:
+        doc = self.doc
+        origin = self.build_origin()
+        path = self.paths.build(origin) if doc.get("path") and self.path_schema_ok else None
+        guidance = self.build_guidance()
+        start = self.build_start()
+        profile = None
+        if path is not None and guidance is not None:
+            self.check_path_against_guidance(path, guidance)
+            profile = self.build_profile(path)
+            if profile is not None and guidance.speed_m_s != profile.speed_m_s(0.0):
+                guidance = dataclasses.replace(guidance, speed_m_s=profile.speed_m_s(0.0))
+        if self.problems:
+            return None
+        return Mission(
+            name=doc["name"],
+            path=path,
+            speed_m_s=profile.speed_m_s(0.0) if profile is not None else doc["speed_m_s"],
+            altitude_m=profile.start_altitude_m if profile is not None else doc["altitude_m"],
+            guidance=guidance,
+            start=start,
+            on_finish=doc["on_finish"],
+            source_text=text,
+            source_name=self.source,
+            frame=self.frame,
+            origin=origin,
+            warnings=tuple(self.warnings),
+            profile=profile,
+            vehicle=self.build_vehicle(),
+        )
+
+    def build_vehicle(self) -> VehicleModel | None:
+        v = self.doc.get("vehicle")
+        if v is None or any(v.get(k) is None for k in VEHICLE_MODEL_KEYS):
+            return None  # absent, or already reported by the schema
+        return VehicleModel(**{k: v[k] for k in VEHICLE_MODEL_KEYS})
+
+    def build_origin(self) -> GeodeticOrigin | None:
+        origin = self.doc.get("origin")
+        if self.frame == "geodetic":
+            if origin is None:  # absent (report it) or unusable (the schema reported it)
+                if self.doc.get("origin") is None and self.origin_absent:
+                    self.problem("origin", "missing; expected {lat_deg, lon_deg, alt_m} for frame: geodetic")
+                return None
+            if any(origin.get(k) is None for k in ("lat_deg", "lon_deg", "alt_m")):
+                return None
+            return GeodeticOrigin(origin["lat_deg"], origin["lon_deg"], origin["alt_m"])
+        if origin is not None:
+            self.problem("origin", f"expected no origin for frame: {self.frame} (only frame: geodetic "
+                         "has one)")
+        return None
+
+    def build_guidance(self) -> GuidanceParams | None:
+        g = self.doc.get("guidance") or {}
+        m = self.doc.get("midcourse") or {}
+        speed = self.doc.get("speed_m_s")
+        if isinstance(speed, list):  # a profile: the guidance starts at the first speed
+            speed = speed[0] if speed and all(v is not None for v in speed) else None
+        elif isinstance(speed, str):  # an expression of s: checked with the path
+            speed = 5.0
+        values = {
+            "method": g.get("method"), "l1_m": g.get("l1_m"), "rate_hz": g.get("rate_hz"),
+            "k1_max": g.get("k1_max"), "k2_max": g.get("k2_max"),
+            "d_limit_factor": g.get("d_limit_factor"), "circle_radius_m": m.get("circle_radius_m"),
+            "midcourse_trigger": m.get("trigger"), "speed_m_s": speed,
+        }
+        if any(v is None for v in values.values()):
+            return None  # already reported by the schema
+        if g.get("rollout_tau_s") is None or g.get("lambda_s4") is None:
+            return None  # already reported by the schema
+        values["rollout_tau_s"] = g["rollout_tau_s"]
+        values["lambda_s4"] = g["lambda_s4"]
+        # Absent: no limit. (An unusable value is None here too, but the schema reported it.)
+        values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
+        model = self.build_vehicle()
+        if model is not None:
+            # A vehicle model: the rollouts assume its lag (plus its dead time) and the law never
+            # plans beyond its acceleration limit (docs/vehicle_model.md).
+            values["rollout_tau_s"] = model.rollout_tau_s()
+            values["a_max_m_s2"] = min(float(values["a_max_m_s2"]), model.a_max_m_s2)
+            values["adapt_model"] = True
+        try:
+            return GuidanceParams(**values)
+        except ValueError as err:  # the schema's ranges should make this unreachable
+            self.problem("guidance", str(err))
+            return None
+
+    def build_start(self) -> StartState | None:
+        start = self.doc.get("start")
+        if start is None or any(start.get(k) is None for k in ("x_m", "y_m", "heading_deg")):
+            return None
+        x, y = self.to_enu_xy(start["x_m"], start["y_m"])
+        return StartState(float(x), float(y), self.to_enu_heading_rad(start["heading_deg"]))
 
     # --------------------------------------------------------------------- path vs guidance
     def check_path_against_guidance(self, path: Path, g: GuidanceParams) -> None:
@@ -539,7 +559,7 @@ class _Builder:
             return None
         profile = build_profile(path.length_m, path.closed, limits, alt_target=alt_target,
                                 speed_target=speed_target)
-        if isinstance(alt, list) and self.knots_s_m is not None:
+        if isinstance(alt, list) and self.knots.s_m is not None:
             self.warn_unreached_heights(profile, alt)
         return profile
 
@@ -565,42 +585,42 @@ class _Builder:
             return fn
         if any(v is None for v in value):
             return None  # reported by the schema
-        if self.knots_s_m is None:
+        if self.knots.s_m is None:
             kind = (self.doc.get("path") or {}).get("type")
             self.problem(key, f"expected a number or an expression of the arc length s for a {kind} "
                          f"path, got a list (lists are for waypoints and segments paths)")
             return None
-        knots = self.knots_s_m
+        knots = self.knots.s_m
         values = list(value)
-        if self.knot_key == "path.segments":
+        if self.knots.key == "path.segments":
             if key == "altitude_m":
-                need, what = self.knot_count + 1, "the start height, then one per segment end"
+                need, what = self.knots.count + 1, "the start height, then one per segment end"
             else:
-                need, what = self.knot_count, "one per segment"
+                need, what = self.knots.count, "one per segment"
                 knots = knots[:-1]
         else:
-            need, what = self.knot_count, f"one per point of {self.knot_key}"
+            need, what = self.knots.count, f"one per point of {self.knots.key}"
         if len(values) != need:
             self.problem(key, f"expected {need} values ({what}), got {len(values)}")
             return None
-        if self.knot_key == "path.segments" and key == "altitude_m" and path.closed:
+        if self.knots.key == "path.segments" and key == "altitude_m" and path.closed:
             if abs(values[-1] - values[0]) > 1e-9:
                 self.problem(key, f"expected the last height to equal the first for closed: true, got "
                              f"{values[0]:g} and {values[-1]:g}")
                 return None
             knots, values = knots[:-1], values[:-1]
-        elif self.dropped_closing_point:
+        elif self.knots.dropped_closing_point:
             values = values[:-1]
         closed = path.closed
         length = path.length_m
         return lambda s: knots_table(s, knots, values, closed, length, step)
 
     def warn_unreached_heights(self, profile: PathProfile, heights: list) -> None:
-        if self.knot_key == "path.segments":
+        if self.knots.key == "path.segments":
             names = ["path.start_m"] + [f"path.segments[{i}]" for i in range(len(heights) - 1)]
         else:
-            names = [f"{self.knot_key}[{i}]" for i in range(len(heights))]
-        for name, s, h in zip(names, self.knots_s_m, heights):
+            names = [f"{self.knots.key}[{i}]" for i in range(len(heights))]
+        for name, s, h in zip(names, self.knots.s_m, heights):
             got = profile.altitude_m(float(s))
             if abs(got - h) > PROFILE_WARN_M:
                 self.warn(name, f"the altitude profile passes at {got:.1f} m instead of {h:g} m "

@@ -223,147 +223,178 @@ def read_wpl(text: str, source: str) -> PlanData:
 
 
 # -------------------------------------------------------------------------------- conversion
-def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None = None,
-            altitude_m: float | None = None, l1_m: float = 10.0) -> ImportResult:
-    """Turn items into mission YAML, or raise :class:`MissionError` with every refusal."""
-    problems = list(data.problems)
-    notes = list(data.notes)
-    waypoints: list[tuple[Item, float]] = []  # (item, altitude above home)
-    speeds: list[tuple[str, float]] = []
-    speed_from: dict[int, float] = {}  # waypoint index -> the speed flown from it on
-    first_speed: float | None = None  # a speed set before the first waypoint
-    on_finish = "hold"
-    finish_item: Item | None = None
-    nav_items = [it for it in data.items if it.command < 100 and it.command not in TAKEOFF_CMDS]
-    last_nav = nav_items[-1] if nav_items else None
+class _ItemWalk:
+    """One pass over the items: waypoints with their heights, speed changes, the finish."""
 
-    def altitude_of(item: Item) -> float | None:
+    def __init__(self, data: PlanData, source: str, problems: list[str], notes: list[str]):
+        self.data = data
+        self.source = source
+        self.problems = problems
+        self.notes = notes
+        self.waypoints: list[tuple[Item, float | None]] = []  # (item, altitude above home)
+        self.speeds: list[tuple[str, float]] = []
+        self.speed_from: dict[int, float] = {}  # waypoint index -> the speed flown from it on
+        self.first_speed: float | None = None  # a speed set before the first waypoint
+        self.on_finish = "hold"
+        self.finish_item: Item | None = None
+        nav_items = [it for it in data.items if it.command < 100 and it.command not in TAKEOFF_CMDS]
+        self.last_nav = nav_items[-1] if nav_items else None
+
+    def run(self) -> None:
+        source = self.source
+        for item in self.data.items:
+            cmd = item.command
+            if cmd in WAYPOINT_CMDS:
+                hold = item.params[0]
+                if math.isfinite(hold) and hold > 0:
+                    self.notes.append(f"{source}: note: {item.where}: hold time of {hold:g} s dropped (the "
+                                      "path is flown without stopping)")
+                self.add_position(item)
+            elif cmd in TAKEOFF_CMDS:
+                self.notes.append(f"{source}: note: {item.where}: skipped {item.name}: guidance starts "
+                                  "airborne")
+            elif cmd in FINISH_CMDS:
+                self.finish(item)
+            elif cmd in REFUSED_CMDS:
+                self.problems.append(f"{source}: {item.where}: {item.name}: {REFUSED_CMDS[cmd]}")
+            elif cmd < 100:
+                self.problems.append(f"{source}: {item.where}: {item.name}: navigation command not "
+                                     "supported; expected NAV_WAYPOINT, NAV_SPLINE_WAYPOINT, NAV_TAKEOFF, "
+                                     "or a final NAV_LAND / NAV_RETURN_TO_LAUNCH / NAV_LOITER_UNLIM")
+            elif cmd == 178:
+                self.change_speed(item)
+            else:
+                self.notes.append(f"{source}: note: {item.where}: skipped {item.name}: not a navigation "
+                                  "item")
+        if self.finish_item is not None:
+            self.notes.append(f"{source}: note: {self.finish_item.where}: {self.finish_item.name} becomes "
+                              f"on_finish: {self.on_finish}")
+
+    def altitude_of(self, item: Item) -> float | None:
         alt = item.params[6]
+        source, home = self.source, self.data.home
         if item.frame in FRAMES_RELATIVE:
             return alt
         if item.frame in FRAMES_ABSOLUTE:
-            if data.home is None:
-                problems.append(f"{source}: {item.where}: expected a home position to convert an "
-                                "absolute (AMSL) altitude")
+            if home is None:
+                self.problems.append(f"{source}: {item.where}: expected a home position to convert an "
+                                     "absolute (AMSL) altitude")
                 return None
-            return alt - data.home[2]
+            return alt - home[2]
         if item.frame in FRAMES_TERRAIN:
-            problems.append(f"{source}: {item.where}: terrain-relative altitude cannot be represented; "
-                            "expected frame 3 (relative to home) or 0 (AMSL)")
+            self.problems.append(f"{source}: {item.where}: terrain-relative altitude cannot be "
+                                 "represented; expected frame 3 (relative to home) or 0 (AMSL)")
             return None
-        problems.append(f"{source}: {item.where}: frame {item.frame} cannot be represented; expected "
-                        "a global frame (0 or 3)")
+        self.problems.append(f"{source}: {item.where}: frame {item.frame} cannot be represented; "
+                             "expected a global frame (0 or 3)")
         return None
 
-    def add_position(item: Item, use_altitude: bool = True) -> None:
+    def add_position(self, item: Item, use_altitude: bool = True) -> None:
         lat, lon = item.lat_lon
         if not (math.isfinite(lat) and math.isfinite(lon)) or (lat, lon) == (0.0, 0.0):
-            problems.append(f"{source}: {item.where}: {item.name} expected a latitude and longitude, "
-                            "got none (0, 0)")
+            self.problems.append(f"{self.source}: {item.where}: {item.name} expected a latitude and "
+                                 "longitude, got none (0, 0)")
             return
         if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-            problems.append(f"{source}: {item.where}: expected latitude in -90..90 and longitude in "
-                            f"-180..180, got {lat:g}, {lon:g}")
+            self.problems.append(f"{self.source}: {item.where}: expected latitude in -90..90 and "
+                                 f"longitude in -180..180, got {lat:g}, {lon:g}")
             return
         if not use_altitude:  # a landing point: flown at the mission altitude, then landed
-            waypoints.append((item, None))
+            self.waypoints.append((item, None))
             return
-        alt = altitude_of(item)
+        alt = self.altitude_of(item)
         if alt is not None:
-            waypoints.append((item, alt))
+            self.waypoints.append((item, alt))
 
-    for item in data.items:
+    def finish(self, item: Item) -> None:
         cmd = item.command
-        if cmd in WAYPOINT_CMDS:
-            hold = item.params[0]
-            if math.isfinite(hold) and hold > 0:
-                notes.append(f"{source}: note: {item.where}: hold time of {hold:g} s dropped (the path "
-                             "is flown without stopping)")
-            add_position(item)
-        elif cmd in TAKEOFF_CMDS:
-            notes.append(f"{source}: note: {item.where}: skipped {item.name}: guidance starts airborne")
-        elif cmd in FINISH_CMDS:
-            if item is not last_nav:
-                problems.append(f"{source}: {item.where}: {item.name} in the middle of the mission "
-                                "cannot be represented; expected it only as the last navigation item")
-                continue
-            on_finish = FINISH_CMDS[cmd]
-            finish_item = item
-            lat, lon = item.lat_lon
-            if cmd != 20 and math.isfinite(lat) and math.isfinite(lon) and (lat, lon) != (0.0, 0.0):
-                add_position(item, use_altitude=(cmd == 17))
-        elif cmd in REFUSED_CMDS:
-            problems.append(f"{source}: {item.where}: {item.name}: {REFUSED_CMDS[cmd]}")
-        elif cmd < 100:
-            problems.append(f"{source}: {item.where}: {item.name}: navigation command not supported; "
-                            "expected NAV_WAYPOINT, NAV_SPLINE_WAYPOINT, NAV_TAKEOFF, or a final "
-                            "NAV_LAND / NAV_RETURN_TO_LAUNCH / NAV_LOITER_UNLIM")
-        elif cmd == 178:
-            value = item.params[1]
-            kind = item.params[0]
-            if math.isfinite(kind) and int(kind) in (2, 3):
-                notes.append(f"{source}: note: {item.where}: skipped DO_CHANGE_SPEED of a "
-                             f"{'climb' if int(kind) == 2 else 'descent'} speed (the climb and sink "
-                             "limits are vertical.climb_max_m_s and vertical.sink_max_m_s)")
-            elif math.isfinite(value) and value > 0:
-                speeds.append((item.where, value))
-                if waypoints:
-                    speed_from[len(waypoints) - 1] = value
-                    notes.append(f"{source}: note: {item.where}: DO_CHANGE_SPEED {value:g} m/s from "
-                                 f"{waypoints[-1][0].where} on")
-                else:
-                    first_speed = value
-                    notes.append(f"{source}: note: {item.where}: DO_CHANGE_SPEED {value:g} m/s from "
-                                 "the start")
-            else:
-                notes.append(f"{source}: note: {item.where}: skipped DO_CHANGE_SPEED without a speed")
-        else:
-            notes.append(f"{source}: note: {item.where}: skipped {item.name}: not a navigation item")
-    if finish_item is not None:
-        notes.append(f"{source}: note: {finish_item.where}: {finish_item.name} becomes on_finish: "
-                     f"{on_finish}")
+        if item is not self.last_nav:
+            self.problems.append(f"{self.source}: {item.where}: {item.name} in the middle of the mission "
+                                 "cannot be represented; expected it only as the last navigation item")
+            return
+        self.on_finish = FINISH_CMDS[cmd]
+        self.finish_item = item
+        lat, lon = item.lat_lon
+        if cmd != 20 and math.isfinite(lat) and math.isfinite(lon) and (lat, lon) != (0.0, 0.0):
+            self.add_position(item, use_altitude=(cmd == 17))
 
-    # Altitude: one height above home per waypoint (one number when they agree within
-    # ALTITUDE_TOLERANCE_M); a landing point is flown at the height of the waypoint before it.
+    def change_speed(self, item: Item) -> None:
+        source = self.source
+        value = item.params[1]
+        kind = item.params[0]
+        if math.isfinite(kind) and int(kind) in (2, 3):
+            self.notes.append(f"{source}: note: {item.where}: skipped DO_CHANGE_SPEED of a "
+                              f"{'climb' if int(kind) == 2 else 'descent'} speed (the climb and sink "
+                              "limits are vertical.climb_max_m_s and vertical.sink_max_m_s)")
+        elif math.isfinite(value) and value > 0:
+            self.speeds.append((item.where, value))
+            if self.waypoints:
+                self.speed_from[len(self.waypoints) - 1] = value
+                self.notes.append(f"{source}: note: {item.where}: DO_CHANGE_SPEED {value:g} m/s from "
+                                  f"{self.waypoints[-1][0].where} on")
+            else:
+                self.first_speed = value
+                self.notes.append(f"{source}: note: {item.where}: DO_CHANGE_SPEED {value:g} m/s from "
+                                  "the start")
+        else:
+            self.notes.append(f"{source}: note: {item.where}: skipped DO_CHANGE_SPEED without a speed")
+
+
+def _waypoint_altitudes(walk: _ItemWalk, altitude_m: float | None) -> list[float]:
+    """One height above home per waypoint; a landing point is flown at the height before it."""
     altitudes: list[float] = []
-    for _, alt in waypoints:
+    for _, alt in walk.waypoints:
         altitudes.append(alt if alt is not None else (altitudes[-1] if altitudes else math.nan))
     if altitude_m is not None:
-        altitudes = [altitude_m] * len(waypoints)
+        altitudes = [altitude_m] * len(walk.waypoints)
     elif altitudes and not math.isfinite(altitudes[0]):
         altitudes = [next((a for a in altitudes if math.isfinite(a)), math.nan)] * len(altitudes)
-    for (item, _), alt in zip(waypoints, altitudes):
+    for (item, _), alt in zip(walk.waypoints, altitudes):
         if math.isfinite(alt) and not alt > 0:
-            problems.append(f"{source}: {item.where}: expected a waypoint above home (altitude > 0), "
-                            f"got {alt:g} m")
+            walk.problems.append(f"{walk.source}: {item.where}: expected a waypoint above home "
+                                 f"(altitude > 0), got {alt:g} m")
+    return altitudes
 
-    # Speed: the user's, else each DO_CHANGE_SPEED from its waypoint on (the first from the plan's
-    # default speed, else 5 m/s, until a DO_CHANGE_SPEED sets it).
+
+def _waypoint_speeds(walk: _ItemWalk, speed_m_s: float | None) -> list[float]:
+    """The user's speed, else each DO_CHANGE_SPEED from its waypoint on (the first from the plan's
+    default speed, else 5 m/s, until a DO_CHANGE_SPEED sets it)."""
+    if speed_m_s is not None:
+        return [speed_m_s] * len(walk.waypoints)
+    source = walk.source
+    current = walk.first_speed
+    if current is None:
+        if walk.data.speed_hint_m_s is not None:
+            current = walk.data.speed_hint_m_s
+            walk.notes.append(f"{source}: note: speed {current:g} m/s from the plan's default speed"
+                              + (" until the first DO_CHANGE_SPEED" if walk.speeds else ""))
+        else:
+            current = DEFAULT_SPEED_M_S
+            walk.notes.append(f"{source}: note: no speed in the file before the first DO_CHANGE_SPEED: "
+                              f"{current:g} m/s" if walk.speeds else
+                              f"{source}: note: no speed in the file: speed_m_s {current:g}")
     speed_list: list[float] = []
-    if speed_m_s is None:
-        current = first_speed
-        if current is None:
-            if data.speed_hint_m_s is not None:
-                current = data.speed_hint_m_s
-                notes.append(f"{source}: note: speed {current:g} m/s from the plan's default speed"
-                             + (" until the first DO_CHANGE_SPEED" if speeds else ""))
-            else:
-                current = DEFAULT_SPEED_M_S
-                notes.append(f"{source}: note: no speed in the file before the first DO_CHANGE_SPEED: "
-                             f"{current:g} m/s" if speeds else
-                             f"{source}: note: no speed in the file: speed_m_s {current:g}")
-        for i in range(len(waypoints)):
-            current = speed_from.get(i, current)
-            speed_list.append(current)
-    else:
-        speed_list = [speed_m_s] * len(waypoints)
+    for i in range(len(walk.waypoints)):
+        current = walk.speed_from.get(i, current)
+        speed_list.append(current)
+    return speed_list
 
-    if len(waypoints) < 2 and not problems:
-        problems.append(f"{source}: expected at least 2 waypoints with positions, got {len(waypoints)}")
-    if problems:
-        raise MissionError(problems)
 
-    # Origin and conversion.
+@dataclass
+class _Placed:
+    """The waypoints in local ENU metres about the origin, repeated positions dropped."""
+
+    origin: tuple[float, float, float]
+    points: np.ndarray
+    items: list[Item]
+    heights: np.ndarray
+    speeds: list[float]
+
+
+def _place(walk: _ItemWalk, altitudes: list[float], speed_list: list[float]) -> _Placed:
+    """Convert to ENU about home (else the first waypoint); a repeated position is dropped, its
+    height and speed carried onto the waypoint kept."""
+    data, waypoints, source = walk.data, walk.waypoints, walk.source
     if data.home is not None:
         origin = data.home
     else:
@@ -377,29 +408,37 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
     keep = [0]
     for i in range(1, len(points)):
         if math.hypot(*(points[i] - points[keep[-1]])) < 1e-3:
-            notes.append(f"{source}: note: {waypoints[i][0].where}: same position as the previous "
-                         "waypoint, dropped" + (f" (its altitude {heights[i]:g} m replaces "
-                                                 f"{heights[keep[-1]]:g} m)"
-                                                 if abs(heights[i] - heights[keep[-1]]) > 1e-9 else ""))
+            walk.notes.append(f"{source}: note: {waypoints[i][0].where}: same position as the previous "
+                              "waypoint, dropped" + (f" (its altitude {heights[i]:g} m replaces "
+                                                      f"{heights[keep[-1]]:g} m)"
+                                                      if abs(heights[i] - heights[keep[-1]]) > 1e-9 else ""))
             heights[keep[-1]] = heights[i]
             speed_list[keep[-1]] = speed_list[i]  # a speed change at the dropped point still applies
         else:
             keep.append(i)
-    points = points[keep]
-    kept_items = [waypoints[i][0] for i in keep]
-    heights = heights[keep]
-    kept_speeds = [speed_list[i] for i in keep]
+    return _Placed(origin, points[keep], [waypoints[i][0] for i in keep], heights[keep],
+                   [speed_list[i] for i in keep])
+
+
+def _profile_texts(placed: _Placed, walk: _ItemWalk) -> tuple[str, str]:
+    """``altitude_m`` and ``speed_m_s`` as YAML: one number when they agree, else a list."""
+    heights, kept_speeds = placed.heights, placed.speeds
     if float(np.max(heights) - np.min(heights)) <= ALTITUDE_TOLERANCE_M:
         altitude_text = f"{float(np.mean(heights)):.3f}"
     else:
         altitude_text = "[" + ", ".join(f"{h:.3f}" for h in heights) + "]"
-        notes.append(f"{source}: note: waypoint altitudes from {float(np.min(heights)):g} m to "
-                     f"{float(np.max(heights)):g} m above home: altitude_m is a profile along the path")
+        walk.notes.append(f"{walk.source}: note: waypoint altitudes from {float(np.min(heights)):g} m to "
+                          f"{float(np.max(heights)):g} m above home: altitude_m is a profile along the path")
     if len(set(kept_speeds)) == 1:
         speed_text = f"{kept_speeds[0]:g}"
     else:
         speed_text = "[" + ", ".join(f"{v:g}" for v in kept_speeds) + "]"
+    return altitude_text, speed_text
 
+
+def _mission_yaml(data: PlanData, source: str, name: str, l1_m: float, on_finish: str, placed: _Placed,
+                  altitude_text: str, speed_text: str) -> str:
+    origin, points = placed.origin, placed.points
     lines = [
         f"# Imported from {FilePath(source).name} by `companion mission import`.",
         "# Waypoints: WGS-84 converted to local ENU metres (x east, y north) about the origin",
@@ -414,7 +453,7 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
         "  type: waypoints",
         "  points_m:",
     ]
-    for (x, y), item in zip(points, kept_items):
+    for (x, y), item in zip(points, placed.items):
         lines.append(f"    - [{x:.4f}, {y:.4f}]  # {item.where}: {item.lat_lon[0]:.8f}, "
                      f"{item.lat_lon[1]:.8f}")
     lines += [
@@ -430,10 +469,27 @@ def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None =
             "# Simulations start above home, facing the first waypoint.",
             f"start: {{x_m: 0.0, y_m: 0.0, heading_deg: {bearing:.3f}}}",
         ]
-    text = "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n"
+
+
+def convert(data: PlanData, source: str, *, name: str, speed_m_s: float | None = None,
+            altitude_m: float | None = None, l1_m: float = 10.0) -> ImportResult:
+    """Turn items into mission YAML, or raise :class:`MissionError` with every refusal."""
+    walk = _ItemWalk(data, source, list(data.problems), list(data.notes))
+    walk.run()
+    altitudes = _waypoint_altitudes(walk, altitude_m)
+    speed_list = _waypoint_speeds(walk, speed_m_s)
+    if len(walk.waypoints) < 2 and not walk.problems:
+        walk.problems.append(f"{source}: expected at least 2 waypoints with positions, got "
+                             f"{len(walk.waypoints)}")
+    if walk.problems:
+        raise MissionError(walk.problems)
+    placed = _place(walk, altitudes, speed_list)
+    altitude_text, speed_text = _profile_texts(placed, walk)
+    text = _mission_yaml(data, source, name, l1_m, walk.on_finish, placed, altitude_text, speed_text)
     mission = parse_mission(text, f"{source} (imported)")  # refuses what the format cannot fly
-    notes += list(mission.warnings)
-    return ImportResult(text, tuple(notes), points, origin)
+    notes = walk.notes + list(mission.warnings)
+    return ImportResult(text, tuple(notes), placed.points, placed.origin)
 
 
 def import_file(file, *, name: str | None = None, speed_m_s: float | None = None,

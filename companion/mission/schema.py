@@ -441,110 +441,124 @@ def validate(value: Any, spec: Any = MISSION, path: str = "") -> tuple[Any, list
 
 
 def _validate(value, spec, path, problems):
-    where = path or "(top level)"
-    if isinstance(spec, Number):
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if ok and not math.isfinite(value):
-            problems.append((where, f"expected {spec.expected()}, got {value!r}"))
-            return None
-        if ok and spec.integer and float(value) != int(value):
-            ok = False
-        if ok:
-            v = float(value)
-            if ((spec.minimum is not None and v < spec.minimum)
-                    or (spec.exclusive_minimum is not None and v <= spec.exclusive_minimum)
-                    or (spec.maximum is not None and v > spec.maximum)
-                    or (spec.exclusive_maximum is not None and v >= spec.exclusive_maximum)
-                    or (spec.nonzero and v == 0)):
-                ok = False
-        if not ok:
-            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
-            return None
-        return int(value) if spec.integer else float(value)
-    if isinstance(spec, OneOf):
-        kind = (list if isinstance(value, list) else str if isinstance(value, str)
-                else float if isinstance(value, (int, float)) and not isinstance(value, bool) else None)
-        for variant in spec.variants:
-            if _kind_of(variant) is kind:
-                return _validate(value, variant, path, problems)
-        problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
-        return None
-    if isinstance(spec, Constant):
-        if isinstance(value, str):
-            try:
-                number = float(compile_expression(value, "")(0.0))
-            except ExpressionError as err:
-                problems.append((where, f"expected {spec.expected()}: {err.problems[0]}"))
-                return None
-            if not math.isfinite(number):
-                problems.append((where, f"expected {spec.expected()}, got {value!r} = {number}"))
-                return None
-            return number
+    validator = _VALIDATORS.get(type(spec))
+    if validator is None:
+        raise TypeError(f"unknown schema node {spec!r}")  # a bug in this module, not in the file
+    return validator(value, spec, path, problems)
+
+
+def _refuse(problems, path, message):
+    """Record ``message`` for ``path`` and give the unusable value's ``None``."""
+    problems.append((path or "(top level)", message))
+    return None
+
+
+def _refuse_got(problems, path, spec, value):
+    return _refuse(problems, path, f"expected {spec.expected()}, got {_got(value)}")
+
+
+def _in_bounds(spec: Number, v: float) -> bool:
+    return not ((spec.minimum is not None and v < spec.minimum)
+                or (spec.exclusive_minimum is not None and v <= spec.exclusive_minimum)
+                or (spec.maximum is not None and v > spec.maximum)
+                or (spec.exclusive_maximum is not None and v >= spec.exclusive_maximum)
+                or (spec.nonzero and v == 0))
+
+
+def _validate_number(value, spec, path, problems):
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if ok and not math.isfinite(value):
+        return _refuse(problems, path, f"expected {spec.expected()}, got {value!r}")
+    if ok and spec.integer and float(value) != int(value):
+        ok = False
+    if not (ok and _in_bounds(spec, float(value))):
+        return _refuse_got(problems, path, spec, value)
+    return int(value) if spec.integer else float(value)
+
+
+def _validate_one_of(value, spec, path, problems):
+    kind = (list if isinstance(value, list) else str if isinstance(value, str)
+            else float if isinstance(value, (int, float)) and not isinstance(value, bool) else None)
+    for variant in spec.variants:
+        if _kind_of(variant) is kind:
+            return _validate(value, variant, path, problems)
+    return _refuse_got(problems, path, spec, value)
+
+
+def _validate_constant(value, spec, path, problems):
+    if not isinstance(value, str):
         return _validate(value, _FINITE, path, problems)
-    if isinstance(spec, String):
-        if value is False and spec.enum and "off" in spec.enum:
-            value = "off"  # YAML 1.1 reads an unquoted `off` as false
-        if not isinstance(value, str):
-            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
-            return None
-        if spec.enum and value not in spec.enum:
-            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
-            return None
-        if len(value) > spec.max_length:
-            problems.append((where, f"expected at most {spec.max_length} characters, got {len(value)}"))
-            return None
-        if not spec.enum and not value.strip():
-            problems.append((where, f"expected {spec.expected()}, got an empty string"))
-            return None
-        return value
-    if isinstance(spec, Boolean):
-        if not isinstance(value, bool):
-            problems.append((where, f"expected true or false, got {_got(value)}"))
-            return None
-        return value
-    if isinstance(spec, Array):
-        if not isinstance(value, list):
-            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
-            return None
-        if len(value) < spec.min_items or (spec.max_items is not None and len(value) > spec.max_items):
-            problems.append((where, f"expected {spec.expected()}, got {len(value)}"))
-            return None
-        out = [_validate(item, spec.items, f"{path}[{i}]", problems) for i, item in enumerate(value)]
-        return out
-    if isinstance(spec, Tagged):
-        if not isinstance(value, dict):
-            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
-            return None
-        kind = value.get(spec.tag)
-        if not isinstance(kind, str) or kind not in spec.variants:
-            problems.append((_join(path, spec.tag),
-                             f"expected one of {', '.join(spec.variants)}, got {_got(kind)}"))
-            return None
-        return _validate(value, spec.variants[kind], path, problems)
-    if isinstance(spec, Object):
-        if not isinstance(value, dict):
-            problems.append((where, f"expected {spec.expected()}, got {_got(value)}"))
-            return None
-        out = {}
-        for key in value:
-            if key not in spec.fields:
-                problems.append((_join(path, str(key)),
-                                 f"unknown key; expected one of {', '.join(spec.fields)}"))
-        for key, fld in spec.fields.items():
-            if key in value:
-                out[key] = _validate(value[key], fld.spec, _join(path, key), problems)
-            elif fld.required:
-                problems.append((_join(path, key), f"missing; expected {fld.spec.expected()}"))
-                out[key] = None
-            elif fld.default is not _MISSING:
-                default = fld.default
-                if isinstance(fld.spec, Object) and isinstance(default, dict):
-                    default = _validate(default, fld.spec, _join(path, key), problems)
-                out[key] = default
-            else:
-                out[key] = None
-        return out
-    raise TypeError(f"unknown schema node {spec!r}")  # a bug in this module, not in the file
+    try:
+        number = float(compile_expression(value, "")(0.0))
+    except ExpressionError as err:
+        return _refuse(problems, path, f"expected {spec.expected()}: {err.problems[0]}")
+    if not math.isfinite(number):
+        return _refuse(problems, path, f"expected {spec.expected()}, got {value!r} = {number}")
+    return number
+
+
+def _validate_string(value, spec, path, problems):
+    if value is False and spec.enum and "off" in spec.enum:
+        value = "off"  # YAML 1.1 reads an unquoted `off` as false
+    if not isinstance(value, str) or (spec.enum and value not in spec.enum):
+        return _refuse_got(problems, path, spec, value)
+    if len(value) > spec.max_length:
+        return _refuse(problems, path, f"expected at most {spec.max_length} characters, got {len(value)}")
+    if not spec.enum and not value.strip():
+        return _refuse(problems, path, f"expected {spec.expected()}, got an empty string")
+    return value
+
+
+def _validate_boolean(value, spec, path, problems):
+    if not isinstance(value, bool):
+        return _refuse_got(problems, path, spec, value)
+    return value
+
+
+def _validate_array(value, spec, path, problems):
+    if not isinstance(value, list):
+        return _refuse_got(problems, path, spec, value)
+    if len(value) < spec.min_items or (spec.max_items is not None and len(value) > spec.max_items):
+        return _refuse(problems, path, f"expected {spec.expected()}, got {len(value)}")
+    return [_validate(item, spec.items, f"{path}[{i}]", problems) for i, item in enumerate(value)]
+
+
+def _validate_tagged(value, spec, path, problems):
+    if not isinstance(value, dict):
+        return _refuse_got(problems, path, spec, value)
+    kind = value.get(spec.tag)
+    if not isinstance(kind, str) or kind not in spec.variants:
+        return _refuse(problems, _join(path, spec.tag),
+                       f"expected one of {', '.join(spec.variants)}, got {_got(kind)}")
+    return _validate(value, spec.variants[kind], path, problems)
+
+
+def _validate_object(value, spec, path, problems):
+    if not isinstance(value, dict):
+        return _refuse_got(problems, path, spec, value)
+    for key in value:
+        if key not in spec.fields:
+            problems.append((_join(path, str(key)), f"unknown key; expected one of {', '.join(spec.fields)}"))
+    out = {}
+    for key, fld in spec.fields.items():
+        if key in value:
+            out[key] = _validate(value[key], fld.spec, _join(path, key), problems)
+        elif fld.required:
+            out[key] = _refuse(problems, _join(path, key), f"missing; expected {fld.spec.expected()}")
+        elif fld.default is not _MISSING and isinstance(fld.spec, Object) and isinstance(fld.default, dict):
+            out[key] = _validate(fld.default, fld.spec, _join(path, key), problems)
+        elif fld.default is not _MISSING:
+            out[key] = fld.default
+        else:
+            out[key] = None
+    return out
+
+
+_VALIDATORS = {
+    Number: _validate_number, OneOf: _validate_one_of, Constant: _validate_constant,
+    String: _validate_string, Boolean: _validate_boolean, Array: _validate_array,
+    Tagged: _validate_tagged, Object: _validate_object,
+}
 
 
 # --------------------------------------------------------------------------------------------

@@ -114,6 +114,34 @@ def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float
             raise ValueError(f"{key}: {message}")
         problem(key, message)
 
+    lengths_a, kappa_a = _lengths_and_curvatures(segments)
+    boundaries = np.concatenate(([0.0], np.cumsum(lengths_a)))
+    total = float(boundaries[-1])
+    end_x, end_y, end_heading = _unblended_end(start_xy_m, start_heading_rad, lengths_a, kappa_a)
+    if closed and not _loop_closes(start_xy_m, start_heading_rad, (end_x, end_y, end_heading), total,
+                                   where, report):
+        return None
+    n = int(min(max(math.ceil(total / GRID_SPACING_M), 2000), MAX_GRID_POINTS - 1))
+    s = np.linspace(0.0, total, n + 1)
+    theta = _blended_heading(s, start_heading_rad, _turn_integrals(boundaries, kappa_a, closed), blend_m)
+    xs, ys = _integrate_position(s, theta, start_xy_m)
+    bc = "not-a-knot"
+    if pin_end and not closed:
+        xs = xs + (end_x - xs[-1]) * s / total
+        ys = ys + (end_y - ys[-1]) * s / total
+    if closed:
+        gx, gy = xs[-1] - xs[0], ys[-1] - ys[0]
+        xs = xs - gx * s / total
+        ys = ys - gy * s / total
+        xs[-1], ys[-1] = xs[0], ys[0]
+        bc = "periodic"
+    sx = CubicSpline(s, xs, bc_type=bc)
+    sy = CubicSpline(s, ys, bc_type=bc)
+    return parametric_path(sx, sy, (0.0, total), closed=closed)
+
+
+def _lengths_and_curvatures(segments) -> tuple[np.ndarray, np.ndarray]:
+    """Arc length and (constant) signed curvature of each line or arc."""
     lengths, kappas = [], []
     for kind, size, turn in segments:
         if kind == "line":
@@ -122,12 +150,12 @@ def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float
         else:
             lengths.append(float(size) * abs(turn))
             kappas.append(math.copysign(1.0 / float(size), turn))
-    lengths_a = np.asarray(lengths)
-    kappa_a = np.asarray(kappas)
-    boundaries = np.concatenate(([0.0], np.cumsum(lengths_a)))
-    total = float(boundaries[-1])
+    return np.asarray(lengths), np.asarray(kappas)
 
-    # Unblended geometry: exact end point and heading, for the closure check.
+
+def _unblended_end(start_xy_m, start_heading_rad: float, lengths_a: np.ndarray,
+                   kappa_a: np.ndarray) -> tuple[float, float, float]:
+    """End point and heading of the unblended lines and arcs (exact), for the closure check."""
     x, y, h = float(start_xy_m[0]), float(start_xy_m[1]), float(start_heading_rad)
     for length, k in zip(lengths_a, kappa_a):
         if k == 0.0:
@@ -139,55 +167,48 @@ def segments_path(start_xy_m, start_heading_rad: float, segments, blend_m: float
             x += r * (math.sin(h_new) - math.sin(h))
             y -= r * (math.cos(h_new) - math.cos(h))
             h = h_new
-    if closed:
-        turn_deg = math.degrees(h - start_heading_rad)
-        laps = round(turn_deg / 360.0)
-        gap = math.hypot(x - start_xy_m[0], y - start_xy_m[1])
-        ok = True
-        if abs(turn_deg - 360.0 * laps) > 1e-6:
-            report(f"{where}.closed", f"expected segments turning a whole number of turns for a loop, "
-                   f"got {turn_deg:.6g} deg")
-            ok = False
-        elif gap > CLOSURE_TOLERANCE * total + 0.01:
-            report(f"{where}.closed", f"expected the segments to end where they start, got a gap of "
-                   f"{gap:.4g} m")
-            ok = False
-        if not ok:
-            return None
+    return x, y, h
 
-    n = int(min(max(math.ceil(total / GRID_SPACING_M), 2000), MAX_GRID_POINTS - 1))
-    s = np.linspace(0.0, total, n + 1)
-    integrals = _turn_integrals(boundaries, kappa_a, closed)
-    if blend_m > 0:
-        # Heading = integral of the moving-average curvature = moving average of K (box kernel):
-        # theta(s) = theta0 + (KK(s + b/2) - KK(s - b/2)) / b, exact. Away from the joints (K linear
-        # over the window) this is exactly the unblended heading theta0 + K(s); a closed loop whose
-        # start lies inside a ramp starts with the blended heading there.
-        half = 0.5 * blend_m
-        _, kk_hi = integrals(s + half)
-        _, kk_lo = integrals(s - half)
-        theta = start_heading_rad + (kk_hi - kk_lo) / blend_m
-    else:
-        theta = start_heading_rad + integrals(s)[0]
 
-    # Position: trapezoid rule on the fine grid (error per metre about h^2 k^2 / 12: negligible).
+def _loop_closes(start_xy_m, start_heading_rad: float, end: tuple[float, float, float], total: float,
+                 where: str, report: Problem) -> bool:
+    """A loop turns a whole number of turns and ends where it starts (else reported)."""
+    x, y, h = end
+    turn_deg = math.degrees(h - start_heading_rad)
+    laps = round(turn_deg / 360.0)
+    gap = math.hypot(x - start_xy_m[0], y - start_xy_m[1])
+    if abs(turn_deg - 360.0 * laps) > 1e-6:
+        report(f"{where}.closed", f"expected segments turning a whole number of turns for a loop, "
+               f"got {turn_deg:.6g} deg")
+        return False
+    if gap > CLOSURE_TOLERANCE * total + 0.01:
+        report(f"{where}.closed", f"expected the segments to end where they start, got a gap of "
+               f"{gap:.4g} m")
+        return False
+    return True
+
+
+def _blended_heading(s: np.ndarray, start_heading_rad: float, integrals, blend_m: float) -> np.ndarray:
+    """Heading on the grid ``s``: the integral of the moving-average curvature (width ``blend_m``)."""
+    if blend_m <= 0:
+        return start_heading_rad + integrals(s)[0]
+    # Heading = integral of the moving-average curvature = moving average of K (box kernel):
+    # theta(s) = theta0 + (KK(s + b/2) - KK(s - b/2)) / b, exact. Away from the joints (K linear
+    # over the window) this is exactly the unblended heading theta0 + K(s); a closed loop whose
+    # start lies inside a ramp starts with the blended heading there.
+    half = 0.5 * blend_m
+    _, kk_hi = integrals(s + half)
+    _, kk_lo = integrals(s - half)
+    return start_heading_rad + (kk_hi - kk_lo) / blend_m
+
+
+def _integrate_position(s: np.ndarray, theta: np.ndarray, start_xy_m) -> tuple[np.ndarray, np.ndarray]:
+    """Position: trapezoid rule on the fine grid (error per metre about h^2 k^2 / 12: negligible)."""
     ds = np.diff(s)
     c, sn = np.cos(theta), np.sin(theta)
     xs = start_xy_m[0] + np.concatenate(([0.0], np.cumsum(0.5 * (c[1:] + c[:-1]) * ds)))
     ys = start_xy_m[1] + np.concatenate(([0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * ds)))
-    bc = "not-a-knot"
-    if pin_end and not closed:
-        xs = xs + (x - xs[-1]) * s / total
-        ys = ys + (y - ys[-1]) * s / total
-    if closed:
-        gx, gy = xs[-1] - xs[0], ys[-1] - ys[0]
-        xs = xs - gx * s / total
-        ys = ys - gy * s / total
-        xs[-1], ys[-1] = xs[0], ys[0]
-        bc = "periodic"
-    sx = CubicSpline(s, xs, bc_type=bc)
-    sy = CubicSpline(s, ys, bc_type=bc)
-    return parametric_path(sx, sy, (0.0, total), closed=closed)
+    return xs, ys
 
 
 def filleted_waypoint_path(points_xy_m, corner_radius_m: float, *, closed: bool, where: str = "path",

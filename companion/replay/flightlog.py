@@ -158,7 +158,7 @@ def _sample_from_debug(row: list[float], time_boot_ms: int) -> PositionSample | 
                           speed * math.sin(course), speed * math.cos(course), 0.0)
 
 
-# Over 80 lines on purpose: one pass over an hour's log (millions of records), every piece of
+# size: the per-record loop is one pass over an hour's log (millions of records), every piece of
 # state a local of this frame; a helper call per record costs a measurable share of the read.
 def read_flight(
     path: str | Path,
@@ -266,20 +266,7 @@ def read_flight(
         raise LogError(f"{path}: no MAVLink records could be read ({reader.size_bytes} bytes)")
     if companion_ticks:
         kind, ticks = "companion", companion_ticks
-        unpaired_ticks, unpaired_setpoints, coasts = _pair_setpoints(events, _tick_rate_hz(companion_ticks),
-                                                                     companion_ticks)
-        if unpaired_ticks:
-            notes.append(f"{unpaired_ticks} recorded ticks have no setpoint of their own (a result that "
-                         "arrived after its tick had coasted, or a damaged log): stepped, not compared")
-        if coasts:
-            notes.append(f"{len(coasts)} setpoints were sent while a slow guidance step ran (coasting): "
-                         "compared with coast_setpoint of the previous result")
-        if unpaired_setpoints - len(coasts):
-            notes.append(f"{unpaired_setpoints - len(coasts)} setpoints were sent outside the guidance loop "
-                         "(before its first tick or after its last): not compared")
-        if reconstructed:
-            notes.append(f"{reconstructed} ticks used a LOCAL_POSITION_NED sample missing from the log; "
-                         "rebuilt from the recorded internals (velocity approximate)")
+        coasts = _pair_companion_ticks(events, companion_ticks, reconstructed, notes)
     elif setpoint_pairs:
         kind, ticks = "setpoints", _setpoint_ticks(setpoint_pairs)
         notes.append("no companion guidance records: each logged setpoint is paired with the newest "
@@ -287,13 +274,37 @@ def read_flight(
     else:
         raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED paired with a LOCAL_POSITION_NED; "
                        "nothing to replay")
-    # The commanded autopilot: the target of the setpoints (the most common), else the only one.
+    return LoggedFlight(path, kind, ticks, coasts, list(reader.warnings), notes, reader.records,
+                        _commanded_origin(last_target, origins))
+
+
+def _pair_companion_ticks(events: dict[tuple[int, int], list[tuple]], ticks: list[LoggedTick],
+                          reconstructed: int, notes: list[str]) -> list[LoggedCoast]:
+    """Pair the recorded ticks with their setpoints; say what was left unpaired or rebuilt."""
+    unpaired_ticks, unpaired_setpoints, coasts = _pair_setpoints(events, _tick_rate_hz(ticks), ticks)
+    if unpaired_ticks:
+        notes.append(f"{unpaired_ticks} recorded ticks have no setpoint of their own (a result that "
+                     "arrived after its tick had coasted, or a damaged log): stepped, not compared")
+    if coasts:
+        notes.append(f"{len(coasts)} setpoints were sent while a slow guidance step ran (coasting): "
+                     "compared with coast_setpoint of the previous result")
+    if unpaired_setpoints - len(coasts):
+        notes.append(f"{unpaired_setpoints - len(coasts)} setpoints were sent outside the guidance loop "
+                     "(before its first tick or after its last): not compared")
+    if reconstructed:
+        notes.append(f"{reconstructed} ticks used a LOCAL_POSITION_NED sample missing from the log; "
+                     "rebuilt from the recorded internals (velocity approximate)")
+    return coasts
+
+
+def _commanded_origin(last_target: dict[tuple[int, int], int],
+                      origins: dict[int, GlobalOrigin]) -> GlobalOrigin | None:
+    """The GPS_GLOBAL_ORIGIN of the commanded autopilot: the target of the setpoints (the most
+    common), else the only autopilot that sent one."""
     targets = list(last_target.values())
     commanded = max(set(targets), key=targets.count) if targets else None
-    origin = origins.get(commanded) if commanded in origins else (
+    return origins.get(commanded) if commanded in origins else (
         next(iter(origins.values())) if len(origins) == 1 else None)
-    return LoggedFlight(path, kind, ticks, coasts if kind == "companion" else [], list(reader.warnings),
-                        notes, reader.records, origin)
 
 
 def _setpoint_ticks(pairs: list[tuple]) -> list[LoggedTick]:

@@ -24,9 +24,11 @@ passes the series:
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
+
+from companion.geometry.profile import PathProfile
 
 #: The row name of the whole-flight figures in every metrics table (sim, fly, demo, replay).
 OVERALL_ROW = "overall"
@@ -41,7 +43,7 @@ def _rms(x: np.ndarray) -> float:
 
 
 def _summary(t_s: np.ndarray, d_m: np.ndarray, a_m_s2: np.ndarray, h_err_m: np.ndarray | None = None,
-             v_err_m_s: np.ndarray | None = None) -> dict:
+             v_err_m_s: np.ndarray | None = None) -> dict[str, Any]:
     out = _summary_2d(t_s, d_m, a_m_s2)
     if h_err_m is not None:
         out["h_rms_m"] = _rms(h_err_m)
@@ -51,7 +53,7 @@ def _summary(t_s: np.ndarray, d_m: np.ndarray, a_m_s2: np.ndarray, h_err_m: np.n
     return out
 
 
-def _summary_2d(t_s: np.ndarray, d_m: np.ndarray, a_m_s2: np.ndarray) -> dict:
+def _summary_2d(t_s: np.ndarray, d_m: np.ndarray, a_m_s2: np.ndarray) -> dict[str, Any]:
     n = int(t_s.size)
     if n == 0:
         return {"d_rms_m": math.nan, "d_max_m": math.nan, "a_rms_m_s2": math.nan,
@@ -74,7 +76,7 @@ def tracking_metrics(
     *,
     h_err_m: Sequence[float] | None = None,
     v_err_m_s: Sequence[float] | None = None,
-) -> dict:
+) -> dict[str, Any]:
     """Overall and per-phase tracking metrics of one flight (simulated, flown or replayed).
 
     Parameters
@@ -106,7 +108,7 @@ def tracking_metrics(
         if series is not None and series.shape != t.shape:
             raise ValueError(f"series lengths differ: t {t.shape}, {name} {series.shape}")
     out = _summary(t, d, a, h, v)
-    phases: dict[str, dict] = {}
+    phases: dict[str, dict[str, Any]] = {}
     if phase is not None:
         names = np.asarray(list(phase), dtype=object)
         if names.shape != t.shape:
@@ -119,8 +121,8 @@ def tracking_metrics(
     return out
 
 
-def profile_errors(profile, s_proj_m: Sequence[float], alt_m: Sequence[float],
-                   ground_speed_m_s: Sequence[float]) -> dict:
+def profile_errors(profile: PathProfile | None, s_proj_m: Sequence[float], alt_m: Sequence[float],
+                   ground_speed_m_s: Sequence[float]) -> dict[str, np.ndarray]:
     """The vertical and along-track speed errors of a flight against a mission's profile.
 
     Returns ``{"h_err_m": ..., "v_err_m_s": ...}`` (the keyword arguments of

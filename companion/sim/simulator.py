@@ -191,6 +191,11 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
         x += wind[0] * dt
         y += wind[1] * dt
         a_ach = a_next
+    return _sim_result(cols, phases, finished, outputs)
+
+
+def _sim_result(cols: dict, phases: list[str], finished: bool, outputs: list) -> SimResult:
+    """The recorded per-tick columns as a :class:`SimResult`, with its tracking metrics."""
     arr = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
     result = SimResult(arr["t"], arr["x"], arr["y"], arr["course"], arr["a"], arr["a_ach"],
                        arr["d"], phases, arr["k1"], arr["k2"], finished, outputs=outputs)

@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from companion.geometry.checks import require_positive_finite
 from companion.guidance.path_frame import frame_output, PathLike, goal_point, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
@@ -68,10 +69,7 @@ class ApL1Params:
     xtrack_i_gain: float = 0.02
 
     def __post_init__(self) -> None:
-        for name in ("period_s", "damping"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+        require_positive_finite(self, ("period_s", "damping"))
         g = self.xtrack_i_gain
         if not (isinstance(g, (int, float)) and math.isfinite(g) and g >= 0):
             raise ValueError(f"xtrack_i_gain: expected a finite number >= 0, got {g!r}")

@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from companion.geometry.checks import require_positive_finite
 from companion.guidance.path_frame import PathLike, is_finished, path_frame
 from companion.guidance.types import GuidanceOutput, VehicleState
 
@@ -69,10 +70,7 @@ class NpfgParams:
     wind_y_m_s: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("period_s", "damping", "airspeed_buffer_m_s", "min_radius_m"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+        require_positive_finite(self, ("period_s", "damping", "airspeed_buffer_m_s", "min_radius_m"))
         for name in ("wind_x_m_s", "wind_y_m_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value)):
