@@ -138,12 +138,12 @@ def test_refuses_to_start_far_from_the_path(free_udp_port, tmp_path):
     assert peer.setpoints == []
 
 
-def test_no_heartbeat_is_a_clear_link_error(free_udp_port, tmp_path):
+def test_no_heartbeat_is_a_clear_link_error_and_leaves_no_file(free_udp_port, tmp_path):
     opts = FlyOptions(connect=f"udpin:127.0.0.1:{free_udp_port}", rate_hz=50.0,
-                      tlog_path=str(tmp_path / "f.tlog"), heartbeat_timeout_s=0.5)
+                      tlog_path=str(tmp_path / "logs" / "f.tlog"), heartbeat_timeout_s=0.5)
     with pytest.raises(LinkError, match="no HEARTBEAT"):
         FlightRunner(line_mission(), opts, Status(quiet=True), guidance=StraightLineGuidance()).run()
-    assert (tmp_path / "f.tlog").exists()
+    assert list(tmp_path.rglob("*")) == []  # no empty tlog, no mission copy, not even logs/
 
 
 def test_heartbeat_loss_stops_and_leaves_a_readable_tlog(free_udp_port, tmp_path):
