@@ -81,6 +81,10 @@ MAV_AUTOPILOT_PX4 = mavlink2.MAV_AUTOPILOT_PX4
 MSG_ID_LOCAL_POSITION_NED = mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED
 MSG_ID_ATTITUDE = mavlink2.MAVLINK_MSG_ID_ATTITUDE
 MSG_ID_GPS_GLOBAL_ORIGIN = mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN
+#: What explains a wait for the position (GPS fix, EKF flags, landed state): the flight asks for
+#: them at 1 Hz; each fills a field of :class:`LinkState` when the autopilot sends it.
+READINESS_MSG_IDS = (mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT, mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
+                     mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)
 
 MAV_CMD_NAV_LAND = mavlink2.MAV_CMD_NAV_LAND
 MAV_CMD_NAV_TAKEOFF = mavlink2.MAV_CMD_NAV_TAKEOFF

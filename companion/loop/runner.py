@@ -49,6 +49,7 @@ from companion.io.link import (
     MAV_CMD_SET_MESSAGE_INTERVAL,
     MSG_ID_ATTITUDE,
     MSG_ID_LOCAL_POSITION_NED,
+    READINESS_MSG_IDS,
     MavLink,
     connect_autopilot,
     readiness_text,
@@ -205,6 +206,9 @@ class FlightRunner:
                                          wait_ack_s=1.0, retries=3, idle=s.idle)
             if result != 0:
                 s.event(f"warning: SET_MESSAGE_INTERVAL {name} {rate:g} Hz: {result_text(result)}")
+        # What explains a wait for the position (GPS, EKF, landed state): 1 Hz, not waited for.
+        for msg_id in READINESS_MSG_IDS:
+            s.link.command_long(MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, 1.0e6), wait_ack_s=0.0, retries=1)
 
     def _align_geodetic_mission(self, s: LinkSession) -> None:
         """Geodetic mission: move its path onto the autopilot's EKF origin (or refuse to fly)."""
@@ -231,12 +235,14 @@ class FlightRunner:
         events. No position within ``--position-timeout-s`` -> LinkError (exit 2)."""
         t0 = time.monotonic()
         end = t0 + self.opt.position_timeout_s
-        n_text = 0
+        n_text, last_text = 0, ""
         while s.link.state.position is None:
             if s.link.state.heartbeats:
                 s.check_link()
             for text in s.statustext_since(n_text):
-                s.event(f"autopilot: {text}")
+                if text != last_text:  # autopilots repeat their pre-arm reasons
+                    s.event(f"autopilot: {text}")
+                last_text = text
             n_text = s.link.state.statustext_count
             why = readiness_text(s.link.state)
             if time.monotonic() > end:
