@@ -241,7 +241,7 @@ class FlightRunner:
                 s.check_link()
             for text in s.statustext_since(n_text):
                 if text != last_text:  # autopilots repeat their pre-arm reasons
-                    s.event(f"autopilot: {text}")
+                    s.event(f"autopilot: {text}", record=False)
                 last_text = text
             n_text = s.link.state.statustext_count
             why = readiness_text(s.link.state)

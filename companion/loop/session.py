@@ -89,13 +89,15 @@ class LinkSession:
         self.keepalive_config: TickConfig | None = None
         self._last_keepalive_s = -math.inf
 
-    def event(self, text: str, severity: int = MAV_SEVERITY_INFO) -> None:
-        """An operator event: the log, the event list, the status line and the tlog (STATUSTEXT
-        of ``severity``, a MAV_SEVERITY)."""
+    def event(self, text: str, severity: int = MAV_SEVERITY_INFO, *, record: bool = True) -> None:
+        """An operator event: the log, the event list, the status line and (``record``) the tlog
+        as a STATUSTEXT of ``severity`` (a MAV_SEVERITY). The autopilot's own messages shown as
+        events are not recorded again: the tlog already holds them."""
         log.info(text)
         self.events.append(text)
         self.status.event(text)
-        self.link.record_event(text, severity)
+        if record:
+            self.link.record_event(text, severity)
 
     def idle(self) -> None:
         """Keep our heartbeat going while waiting for anything (and PX4's setpoint stream)."""
