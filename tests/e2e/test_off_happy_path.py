@@ -20,6 +20,7 @@ failsafe.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import subprocess
@@ -201,6 +202,13 @@ def test_the_companions_events_are_in_the_tlog_and_shown_by_log_summary_and_repl
     replay_out = capsys.readouterr().out
     events = replay_out.split("companion events (time since start, severity, text):")[1]
     assert "INFO      in GUIDED mode" in events and "paired with ardupilot copter" in events
-    # The status line's metric names are the simulator's: no zero-length "finished" phase.
+    # The flight's metric names and phases are the simulator's: no zero-length "finished" phase.
     assert "finished" not in runner.summary["phases"]
     assert math.isfinite(runner.summary["d_rms_m"])
+    assert main(["sim", str(ROOT / "missions" / "paper_sine.yaml"), "--json"]) == 0
+    sim = json.loads(capsys.readouterr().out)
+    names = {"d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "duration_s", "samples"}
+    assert names <= set(sim) and names <= set(runner.summary)
+    for phase in set(sim["phases"]) & set(runner.summary["phases"]):
+        assert set(sim["phases"][phase]) == set(runner.summary["phases"][phase])
+    assert set(runner.summary["phases"]) <= {"midcourse", "close_range"}
