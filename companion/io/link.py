@@ -441,12 +441,12 @@ def readiness_text(state: LinkState) -> str:
     >>> st = LinkState(gps_fix_type=1, gps_satellites=0, ekf_flags=1 | 2)
     >>> st.statustext.append((6, "EKF3 IMU0 initialised"))
     >>> readiness_text(st)
-    'GPS no fix (0 sats); EKF lacks relative position, absolute position; autopilot: EKF3 IMU0 initialised'
+    'GPS NO_FIX (0 sats); EKF lacks relative position, absolute position; autopilot: EKF3 IMU0 initialised'
     """
     parts = []
     if state.gps_fix_type is not None:
-        fix = {0: "no GPS", 1: "no fix", 2: "2D fix", 3: "3D fix"}.get(state.gps_fix_type,
-                                                                        f"fix type {state.gps_fix_type}")
+        entry = mavlink2.enums["GPS_FIX_TYPE"].get(state.gps_fix_type)
+        fix = entry.name.removeprefix("GPS_FIX_TYPE_") if entry is not None else str(state.gps_fix_type)
         parts.append(f"GPS {fix} ({state.gps_satellites or 0} sats)")
     if state.ekf_flags is not None:
         missing = [name for name, flag in EKF_POSITION_FLAGS if not state.ekf_flags & flag]
