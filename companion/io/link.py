@@ -487,13 +487,17 @@ def connect_autopilot(connect: str, *, heartbeat_timeout_s: float,
     packets of both directions are kept in memory (:class:`MemoryRecorder`), so the tlog still
     starts with the first heartbeat. ``progress`` gets the waiting status line (see
     :meth:`MavLink.wait_heartbeat`); ``link_kw`` are :class:`MavLink`'s keywords. On failure the
-    link is closed and the LinkError raised.
+    link is closed and the LinkError raised, with the link's counters in its ``counters``.
     """
     link_kw.pop("tlog", None)
     link = MavLink(connect, tlog=MemoryRecorder(), **link_kw)
     try:
         link.wait_heartbeat(heartbeat_timeout_s, progress=progress)
         link.send_heartbeat()
+    except LinkError as err:
+        link.close()
+        err.counters = link.counters()  # what came in meanwhile (a wrong signing key: bad_signature)
+        raise
     except BaseException:
         link.close()
         raise

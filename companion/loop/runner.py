@@ -160,6 +160,7 @@ class FlightRunner:
         self.exit_reason = "not started"
         self.session: LinkSession | None = None
         self.flight: FlightLoop | None = None
+        self._failed_link_counters: dict = {}  # a pairing that failed: what its link counted
 
     @property
     def setpoints_sent(self) -> int:
@@ -180,16 +181,20 @@ class FlightRunner:
 
     def _open(self) -> LinkSession:
         writer = TlogWriter(self.tlog_path).check_writable()
-        self.link = connect_autopilot(
-            self.opt.connect,
-            heartbeat_timeout_s=self.opt.heartbeat_timeout_s,
-            progress=self.status.live,
-            source_system=self.opt.source_system,
-            source_component=self.opt.source_component,
-            signing_key=self.opt.signing_key,
-            target_system=self.opt.target_system,
-            autopilot=self.opt.autopilot,
-        )
+        try:
+            self.link = connect_autopilot(
+                self.opt.connect,
+                heartbeat_timeout_s=self.opt.heartbeat_timeout_s,
+                progress=self.status.live,
+                source_system=self.opt.source_system,
+                source_component=self.opt.source_component,
+                signing_key=self.opt.signing_key,
+                target_system=self.opt.target_system,
+                autopilot=self.opt.autopilot,
+            )
+        except LinkError as err:
+            self._failed_link_counters = err.counters or {}
+            raise
         self.tlog = writer.open()
         write_mission_beside(self.tlog_path, self.mission.source_text or "")
         self.link.attach_tlog(self.tlog)
@@ -381,7 +386,7 @@ class FlightRunner:
             "clock": self.opt.clock,
             "exit": self.exit_reason,
             "tlog": str(self.tlog_path),
-            "link": self.link.counters() if self.link is not None else {},
+            "link": self.link.counters() if self.link is not None else self._failed_link_counters,
         })
         if self.origin_shift is not None:
             m["origin_offset_enu_m"] = [self.origin_shift.east_m, self.origin_shift.north_m]
