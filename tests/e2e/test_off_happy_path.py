@@ -141,11 +141,12 @@ def test_a_vehicle_that_does_not_move_stops_within_10_s(autopilot, tmp_path):
 
 @pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
 def test_a_runaway_holds_then_stops_within_10_s(autopilot, tmp_path):
-    m = parse_mission(LINE, "line.yaml")
+    # At 8 m/s the reversed law takes the vehicle 25 m out in about 4 s (5 m/s: about 6 s).
+    m = parse_mission(LINE.replace("speed_m_s: 5.0", "speed_m_s: 8.0"), "line.yaml")
     port = free_udp_port()
-    # 5 m left of the path: the reversed law pushes the vehicle farther out.
+    # 10 m left of the path: the reversed law pushes the vehicle farther out.
     mock = start_mock(["--autopilot", autopilot, "--vehicle", "copter", "--link", f"udpout:127.0.0.1:{port}",
-                       "--start-ned=5,0", "--start-alt-m", "10", "--start-yaw-deg=90", "--start-airborne"])
+                       "--start-ned=10,0", "--start-alt-m", "10", "--start-yaw-deg=90", "--start-airborne"])
     runner = fly_runner(m, port, tmp_path, guidance=ReversedLaw(make_guidance(m, 50.0)))
     try:
         with pytest.raises(FlightUnhealthy, match="runaway") as info:
