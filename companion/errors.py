@@ -20,7 +20,13 @@ class MissionError(CompanionError):
 
 
 class LinkError(CompanionError):
-    """The MAVLink link failed (no heartbeat, timeout, refused connection, bad link string)."""
+    """The MAVLink link failed (no heartbeat, timeout, refused connection, bad link string).
+
+    ``counters`` holds the link's packet counts (received, rejected by reason, ...) when the link
+    had opened before it failed (a failed pairing), else None.
+    """
+
+    counters: dict | None = None
 
 
 class LogError(CompanionError):

@@ -97,6 +97,9 @@ def register(subparsers) -> None:
     p.add_argument("--target-system", type=int, default=None, help="pair only with this autopilot system id")
     p.add_argument("--heartbeat-timeout-s", type=float, default=15.0,
                    help="wait this long for the autopilot's first heartbeat (default 15)")
+    p.add_argument("--position-timeout-s", type=float, default=90.0,
+                   help="wait this long for the autopilot's position estimate, showing what it says "
+                        "(GPS, EKF, its messages); a cold-started ArduCopter needs about 40 s (default 90)")
     p.add_argument("--origin-timeout-s", type=float, default=10.0,
                    help="geodetic missions: wait this long for the autopilot's GPS_GLOBAL_ORIGIN, "
                         "else refuse to fly (default 10)")
@@ -131,6 +134,8 @@ def options_from_args(args, mission, **overrides):
         target_system=getattr(args, "target_system", None),
         heartbeat_timeout_s=getattr(args, "heartbeat_timeout_s", 15.0),
         origin_timeout_s=getattr(args, "origin_timeout_s", 10.0),
+        position_timeout_s=getattr(args, "position_timeout_s", 90.0),
+        health=health_options_from_args(args),
     )
     kw.update(overrides)
     return FlyOptions(**kw)

@@ -52,13 +52,37 @@ def run(args) -> int:
         from companion.replay.plot import plot_replay
 
         plot_replay(result, args.plot)
+    events = companion_events(args.tlog)
     if args.json:
-        print(json.dumps(result.to_json(), indent=2, allow_nan=False))
+        out = result.to_json()
+        out["events"] = events
+        print(json.dumps(out, indent=2, allow_nan=False))
     else:
         from companion.replay.report import format_report
 
         print(format_report(result))
+        print(format_events(events))
     return result.exit_code
+
+
+def companion_events(tlog: str) -> list[dict]:
+    """The companion's own events recorded in the flight's tlog (STATUSTEXT from a sender whose
+    HEARTBEAT says onboard controller, component 191 by default), as ``companion log summary``
+    lists them: ``time_s`` since the start of the log, ``severity``, ``text``."""
+    from companion.replay.summary import summarise_log
+
+    summary = summarise_log(tlog, progress=False)
+    ours = {(s["system"], s["component"]) for s in summary["systems"] if "ONBOARD_CONTROLLER" in str(s["type"])}
+    return [{"time_s": e["time_s"], "severity": str(e["severity"]).removeprefix("MAV_SEVERITY_"), "text": e["text"]}
+            for e in summary["statustext"]
+            if (e["system"], e["component"]) in ours or (not ours and e["component"] == 191)]
+
+
+def format_events(events: list[dict]) -> str:
+    """The events as text lines (time since the start of the log, severity, text)."""
+    lines = ["", "companion events (time since start, severity, text):"]
+    lines += [f"  {e['time_s']:8.2f} s  {e['severity']:<9} {e['text']}" for e in events] or ["  (none)"]
+    return "\n".join(lines)
 
 
 def _tolerance(args) -> Tolerance:

@@ -26,11 +26,13 @@ file behind; :meth:`MavLink.attach_tlog` then moves them into the flight's tlog.
 Packets are parsed with pymavlink's MAVLink 2 parser (MAVLink 1 is read too). A UDP datagram is
 parsed on its own (no bytes carried over to the next datagram). Rejections are counted by reason
 in :attr:`MavLink.rejected`: ``bad_crc``, ``bad_data`` (bad prefix, wrong length, truncated),
-``unknown`` (message id not in the dialect), ``wrong_system`` (not the paired system/component),
+``wrong_system`` (not the paired system/component),
 ``wrong_address`` (UDP datagram not from the pinned peer), ``unsigned`` and ``bad_signature``
 (signing on), ``nan`` and ``out_of_range`` (state fields), ``old_sample`` (a LOCAL_POSITION_NED
 not newer than the one held: reordered, duplicated or replayed; an earlier time is taken only as
 an autopilot reboot, after a silence and with evidence, see :meth:`MavLink._position_restart`).
+A message whose id the dialect does not know (a real PX4 sends about 25 a second: newer or
+development messages) is not an error: it is counted in :attr:`MavLink.ignored` and dropped.
 
 Signing (MAVLink 2): ``signing_key`` is 32 bytes (:func:`load_signing_key` reads a file with 64
 hex characters, or any other text as a passphrase hashed with SHA-256). When set, every outgoing
@@ -79,6 +81,10 @@ MAV_AUTOPILOT_PX4 = mavlink2.MAV_AUTOPILOT_PX4
 MSG_ID_LOCAL_POSITION_NED = mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED
 MSG_ID_ATTITUDE = mavlink2.MAVLINK_MSG_ID_ATTITUDE
 MSG_ID_GPS_GLOBAL_ORIGIN = mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN
+#: What explains a wait for the position (GPS fix, EKF flags, landed state): the flight asks for
+#: them at 1 Hz; each fills a field of :class:`LinkState` when the autopilot sends it.
+READINESS_MSG_IDS = (mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT, mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
+                     mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)
 
 MAV_CMD_NAV_LAND = mavlink2.MAV_CMD_NAV_LAND
 MAV_CMD_NAV_TAKEOFF = mavlink2.MAV_CMD_NAV_TAKEOFF
@@ -92,11 +98,15 @@ MAV_CMD_GUIDED_CHANGE_ALTITUDE = mavlink2.MAV_CMD_GUIDED_CHANGE_ALTITUDE
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 MAV_MODE_FLAG_SAFETY_ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 MAV_RESULT_IN_PROGRESS = mavlink2.MAV_RESULT_IN_PROGRESS
+MAV_LANDED_STATE_ON_GROUND = mavlink2.MAV_LANDED_STATE_ON_GROUND
+MAV_LANDED_STATE_IN_AIR = mavlink2.MAV_LANDED_STATE_IN_AIR
+MAV_LANDED_STATE_UNDEFINED = mavlink2.MAV_LANDED_STATE_UNDEFINED
 
 #: MAV_RESULT in words (``ACCEPTED``, ``DENIED``, ...), from the dialect's enum.
 MAV_RESULT_NAMES = {value: entry.name.removeprefix("MAV_RESULT_")
                     for value, entry in mavlink2.enums["MAV_RESULT"].items() if entry.name != "MAV_RESULT_ENUM_END"}
 MAV_RESULT_NAMES.setdefault(6, "CANCELLED")  # MAV_RESULT_CANCELLED: newer than this dialect
+MAV_SEVERITY_CRITICAL = mavlink2.MAV_SEVERITY_CRITICAL
 MAV_SEVERITY_WARNING = mavlink2.MAV_SEVERITY_WARNING
 MAV_SEVERITY_NOTICE = mavlink2.MAV_SEVERITY_NOTICE
 MAV_SEVERITY_INFO = mavlink2.MAV_SEVERITY_INFO
@@ -105,7 +115,7 @@ STATUSTEXT_CHARS = 50  # the text field of STATUSTEXT
 #: A time_boot_ms this far behind the newest one means the autopilot restarted.
 RESTART_JUMP_S = 2.0
 
-REJECT_REASONS = ("bad_crc", "bad_data", "unknown", "wrong_system", "wrong_address", "unsigned",
+REJECT_REASONS = ("bad_crc", "bad_data", "wrong_system", "wrong_address", "unsigned",
                   "bad_signature", "nan", "out_of_range", "old_sample")
 
 _T = mavlink2
@@ -398,11 +408,52 @@ class LinkState:
     last_heartbeat_s: float = math.nan  # monotonic
     last_message_s: float = math.nan  # monotonic, any accepted message
     autopilot_time_s: float = math.nan  # newest time_boot_ms of an accepted message, seconds
-    statustext: list = field(default_factory=list)  # (severity, text), newest last
+    statustext: list = field(default_factory=list)  # (severity, text), newest last (the last 50)
+    statustext_count: int = 0  # every STATUSTEXT accepted since the link opened
     acks: dict = field(default_factory=dict)  # command -> (result, monotonic time)
     heartbeats: int = 0
     positions: int = 0
     global_origin: "GlobalOrigin | None" = None  # newest GPS_GLOBAL_ORIGIN (the EKF's local origin)
+    landed_state: int = MAV_LANDED_STATE_UNDEFINED  # EXTENDED_SYS_STATE, if the autopilot sends it
+    ekf_flags: int | None = None  # EKF_STATUS_REPORT flags (ArduPilot), if sent
+    gps_fix_type: int | None = None  # GPS_RAW_INT fix_type, if sent
+    gps_satellites: int | None = None
+
+
+#: Messages that explain why the autopilot is not ready: LinkState field <- message field.
+_STATUS_FIELDS = {
+    "EXTENDED_SYS_STATE": (("landed_state", "landed_state"),),
+    "EKF_STATUS_REPORT": (("ekf_flags", "flags"),),
+    "GPS_RAW_INT": (("gps_fix_type", "fix_type"), ("gps_satellites", "satellites_visible")),
+}
+
+#: EKF_STATUS_REPORT flags a position estimate needs (ArduPilot's EKF_STATUS_FLAGS).
+EKF_POSITION_FLAGS = (("attitude", mavlink2.EKF_ATTITUDE), ("horizontal velocity", mavlink2.EKF_VELOCITY_HORIZ),
+                      ("relative position", mavlink2.EKF_POS_HORIZ_REL),
+                      ("absolute position", mavlink2.EKF_POS_HORIZ_ABS))
+
+
+def readiness_text(state: LinkState) -> str:
+    """What the autopilot's own messages say of its position estimate, in one short phrase:
+    GPS fix and satellites (GPS_RAW_INT), the EKF flags still missing (EKF_STATUS_REPORT), the
+    newest STATUSTEXT. Empty when it sent none of them.
+
+    >>> st = LinkState(gps_fix_type=1, gps_satellites=0, ekf_flags=1 | 2)
+    >>> st.statustext.append((6, "EKF3 IMU0 initialised"))
+    >>> readiness_text(st)
+    'GPS NO_FIX (0 sats); EKF lacks relative position, absolute position; autopilot: EKF3 IMU0 initialised'
+    """
+    parts = []
+    if state.gps_fix_type is not None:
+        entry = mavlink2.enums["GPS_FIX_TYPE"].get(state.gps_fix_type)
+        fix = entry.name.removeprefix("GPS_FIX_TYPE_") if entry is not None else str(state.gps_fix_type)
+        parts.append(f"GPS {fix} ({state.gps_satellites or 0} sats)")
+    if state.ekf_flags is not None:
+        missing = [name for name, flag in EKF_POSITION_FLAGS if not state.ekf_flags & flag]
+        parts.append(f"EKF lacks {', '.join(missing)}" if missing else "EKF position ok")
+    if state.statustext:
+        parts.append(f"autopilot: {state.statustext[-1][1]}")
+    return "; ".join(parts)
 
 
 class MemoryRecorder:
@@ -436,13 +487,17 @@ def connect_autopilot(connect: str, *, heartbeat_timeout_s: float,
     packets of both directions are kept in memory (:class:`MemoryRecorder`), so the tlog still
     starts with the first heartbeat. ``progress`` gets the waiting status line (see
     :meth:`MavLink.wait_heartbeat`); ``link_kw`` are :class:`MavLink`'s keywords. On failure the
-    link is closed and the LinkError raised.
+    link is closed and the LinkError raised, with the link's counters in its ``counters``.
     """
     link_kw.pop("tlog", None)
     link = MavLink(connect, tlog=MemoryRecorder(), **link_kw)
     try:
         link.wait_heartbeat(heartbeat_timeout_s, progress=progress)
         link.send_heartbeat()
+    except LinkError as err:
+        link.close()
+        err.counters = link.counters()  # what came in meanwhile (a wrong signing key: bad_signature)
+        raise
     except BaseException:
         link.close()
         raise
@@ -530,6 +585,7 @@ class MavLink:
         self.info: AutopilotInfo | None = None
         self.state = LinkState()
         self.rejected = {reason: 0 for reason in REJECT_REASONS}
+        self.ignored = 0  # messages whose id the dialect does not know (not an error)
         self.received = 0
         self.sent = 0
         self.stranger_addresses: set = set()
@@ -601,7 +657,7 @@ class MavLink:
             self.rejected[self._classify_bad(msg)] += 1
             return 0
         if mtype.startswith("UNKNOWN"):
-            self.rejected["unknown"] += 1
+            self.ignored += 1
             return 0
         now = self.clock()
         src = (msg.get_srcSystem(), msg.get_srcComponent())
@@ -697,8 +753,12 @@ class MavLink:
             text = msg.text.decode("utf-8", "replace") if isinstance(msg.text, bytes) else str(msg.text)
             st.statustext.append((int(msg.severity), text.rstrip("\x00")))
             del st.statustext[:-50]
+            st.statustext_count += 1
         elif mtype == "COMMAND_ACK":
             st.acks[int(msg.command)] = (int(msg.result), now)
+        elif mtype in _STATUS_FIELDS:
+            for attr, wire in _STATUS_FIELDS[mtype]:
+                setattr(st, attr, int(getattr(msg, wire)))
         elif mtype == "GPS_GLOBAL_ORIGIN":
             origin = global_origin_from_wire(msg.latitude, msg.longitude, msg.altitude, now)
             if origin is None:
@@ -906,6 +966,27 @@ class MavLink:
             return cm == ((main << 16) | (sub << 24))
         return cm == self.custom_mode_value(name)
 
+    def mode_text(self) -> str:
+        """The autopilot's current mode in its own words (``OFFBOARD``, ``GUIDED``; ``""``: unknown)."""
+        from companion.io.logread import mode_name
+
+        if self.info is None or self.state.custom_mode is None:
+            return ""
+        code = MAV_AUTOPILOT_PX4 if self.info.autopilot == "px4" else MAV_AUTOPILOT_ARDUPILOTMEGA
+        return mode_name(code, self.info.mav_type, self.state.base_mode, self.state.custom_mode)
+
+    def set_custom_mode(self, custom_mode: int, **kw) -> int | None:
+        """DO_SET_MODE back to a mode as the HEARTBEAT reported it (restoring the mode found)."""
+        if self.info is not None and self.info.autopilot == "px4":
+            main, sub = (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
+        else:
+            main, sub = custom_mode, 0
+        return self.command_long(MAV_CMD_DO_SET_MODE, (MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub), **kw)
+
+    def in_mode_value(self, custom_mode: int) -> bool:
+        """Whether the HEARTBEAT reports exactly this ``custom_mode``."""
+        return self.state.custom_mode == custom_mode
+
     def set_mode(self, name: str, **kw) -> int | None:
         base, main, sub = self.mode_number(name)
         return self.command_long(MAV_CMD_DO_SET_MODE, (base, main, sub), **kw)
@@ -990,7 +1071,8 @@ class MavLink:
 
     def counters(self) -> dict:
         return {"received": self.received, "sent": self.sent, "autopilot_restarts": self.restarts,
-                "rejected": dict(self.rejected), "rejected_total": sum(self.rejected.values())}
+                "rejected": dict(self.rejected), "rejected_total": sum(self.rejected.values()),
+                "ignored_unknown_id": self.ignored}
 
     def close(self) -> None:
         if self.tlog is not None:

@@ -19,16 +19,18 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-from companion.errors import FlightAborted
+from companion.errors import FlightAborted, LinkError
 from companion.guidance.types import GuidanceLaw
-from companion.io.link import MavLink
-from companion.io.setpoints import AttitudeSetpoint
+from companion.io.link import MAV_SEVERITY_CRITICAL, MAV_SEVERITY_WARNING, MavLink
+from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.io.state import PositionSample
 from companion.io.tlog import TlogWriter
 from companion.loop.driver import TickDriver
+from companion.loop.health import HealthMonitor, HealthVerdict, sample_from_tick
 from companion.loop.scheduler import Clock, FixedRateScheduler
 from companion.loop.session import LinkSession
-from companion.loop.tick import DEBUG_FIELDS, TickConfig, TickResult, course_from_sample
+from companion.loop.status_line import StatusFields, format_status_line
+from companion.loop.tick import DEBUG_FIELDS, TickConfig, TickResult, course_from_sample, hold_for
 
 _I_SETPOINT_SENT = DEBUG_FIELDS.index("setpoint_sent")
 
@@ -103,8 +105,12 @@ class FlightLoop:
     """
 
     def __init__(self, session: LinkSession, guidance: GuidanceLaw, config: TickConfig, clock: Clock,
-                 target_mode: str, start_heading_rad: float, tlog: TlogWriter, record: FlightRecord):
+                 target_mode: str, start_heading_rad: float, tlog: TlogWriter, record: FlightRecord,
+                 *, health: HealthMonitor | None = None, path_length_m: float = math.nan):
         self.s = session
+        self.health = health
+        self.path_length_m = path_length_m
+        self.verdict = HealthVerdict()
         self.config = config
         self.clock = clock
         self.target_mode = target_mode
@@ -161,7 +167,10 @@ class FlightLoop:
             sample, age = self._sample(now)
             out = self.driver.run_tick(t_s, now, sample, age, s.link.state.yaw_ned_rad, self._worker.submit,
                                        self._step_budget_s, self._after_guidance)
-            s.send(out.setpoint)
+            setpoint = out.setpoint
+            if out.result is not None and self.health is not None:
+                setpoint = self._check_health(out.result, t_s, setpoint)
+            s.send(setpoint)
             self.tlog.flush()
             sched.done()
             if out.result is None:
@@ -172,6 +181,43 @@ class FlightLoop:
             if opt.max_duration_s is not None and t_s >= opt.max_duration_s:
                 s.event(f"stopping after --max-duration-s {opt.max_duration_s:g}")
                 return "max duration"
+
+    def _check_health(self, result: TickResult, t_s: float,
+                      setpoint: VelocitySetpoint | AttitudeSetpoint) -> VelocitySetpoint | AttitudeSetpoint:
+        """The flight-health verdict of a fresh tick (:mod:`companion.loop.health`): a change is an
+        event and a STATUSTEXT in the tlog; ``hold`` replaces the setpoint with a hold; ``stop``
+        sends the hold, asks the autopilot for its own hold mode and raises (exit 3)."""
+        assert self.health is not None
+        v = self.health.update(sample_from_tick(result, t_s, self.s.link.state.autopilot_time_s))
+        self.verdict = v
+        if v.changed and v.level in ("warn", "hold"):
+            self.s.event(v.reason, MAV_SEVERITY_WARNING)
+        elif v.changed and v.ok:
+            self.s.event("flight health ok again")
+        if v.level not in ("hold", "stop"):
+            return setpoint
+        p = result.sample
+        alt = -p.z_ned_m if p is not None else math.nan
+        s_m = result.output.s_proj_m if result.output is not None else 0.0
+        hold = hold_for(self.config, alt, p is not None, result.course_rad, s_m)
+        if v.level == "stop":
+            self.s.link.record_event(v.error().args[0], MAV_SEVERITY_CRITICAL)
+            self.s.send(hold)
+            self._request_hold_mode()
+            raise v.error()
+        return hold
+
+    def _request_hold_mode(self) -> None:
+        """After a health stop: the autopilot's own hold (PX4 Hold, ArduPilot LOITER), unacknowledged
+        modes reported but not retried for long (the flight ends either way)."""
+        s = self.s
+        try:
+            result = s.link.set_mode("loiter", wait_ack_s=1.0, retries=2, idle=s.link.heartbeat_if_due)
+        except LinkError as err:
+            s.link.record_event(f"hold mode not requested: {err}", MAV_SEVERITY_WARNING)
+            return
+        if result != 0:
+            s.link.record_event(f"hold mode refused ({result})", MAV_SEVERITY_WARNING)
 
     def _pilot_override(self) -> None:
         """The vehicle left the flight mode: abort, or (``--resume``) wait for the pilot to return."""
@@ -236,16 +282,15 @@ class FlightLoop:
 
     def _live(self, result: TickResult, sched: FixedRateScheduler) -> None:
         link = self.s.link
-        out = result.output
-        xt = f"{out.crosstrack_m:+6.2f}" if out is not None else "   n/a"
-        a = f"{out.a_cmd_m_s2:+6.2f}" if out is not None else "  0.00"
-        rej: int | str = sum(link.rejected.values())
-        if rej:  # the split by reason, largest first (bad_data 12, nan 3, ...)
-            split = sorted(((n, k) for k, n in link.rejected.items() if n), reverse=True)
-            rej = f"{rej} ({', '.join(f'{k} {n}' for n, k in split)})"
-        hb_age = link.link_age_s()
-        state = "link ok" if hb_age < 1.5 else f"link quiet {hb_age:.1f} s"
-        self.s.status.live(
-            f"t {result.t_s:6.1f} s  {result.phase:<11} xtrack {xt} m  a_cmd {a} m/s2  "
-            f"{sched.current_rate_hz():5.1f} Hz  {state}  rejected {rej}"
-        )
+        out, p, v = result.output, result.sample, self.verdict
+        share = out.s_proj_m / self.path_length_m if out is not None and self.path_length_m > 0 else math.nan
+        self.s.status.live(format_status_line(StatusFields(
+            t_s=result.t_s, phase=result.phase,
+            crosstrack_m=out.crosstrack_m if out is not None else None,
+            a_cmd_m_s2=out.a_cmd_m_s2 if out is not None else None,
+            rate_hz=sched.current_rate_hz(), link_age_s=link.link_age_s(), rejected=link.rejected,
+            mode=link.mode_text(), armed=link.state.armed,
+            altitude_m=-p.z_ned_m if p is not None else math.nan,
+            ground_speed_m_s=math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) if p is not None else math.nan,
+            path_fraction=share, health="" if v.ok else f"{v.level.upper()} {v.check}",
+            ignored=link.ignored)))

@@ -27,7 +27,12 @@ import time
 from typing import TYPE_CHECKING
 
 from companion.errors import FlightAborted, LinkError
-from companion.io.link import AutopilotInfo
+from companion.io.link import (
+    MAV_LANDED_STATE_IN_AIR,
+    MAV_LANDED_STATE_ON_GROUND,
+    MAV_SEVERITY_WARNING,
+    AutopilotInfo,
+)
 from companion.loop.session import LinkSession, result_text
 
 if TYPE_CHECKING:
@@ -38,6 +43,11 @@ if TYPE_CHECKING:
 CLIMB_TIMEOUT_S = 120.0
 #: How long the vehicle has to report the mode it was switched to.
 MODE_REPORT_TIMEOUT_S = 3.0
+#: After an ACCEPTED arm command, how long a HEARTBEAT has to show the armed flag (PX4 sends
+#: its heartbeat at 1 Hz on some links).
+ARM_REPORT_TIMEOUT_S = 2.5
+#: Without EXTENDED_SYS_STATE, a vehicle armed before the flight and higher than this is flying.
+AIRBORNE_MIN_ALT_M = 1.0
 
 
 class AutopilotProfile:
@@ -55,43 +65,97 @@ class AutopilotProfile:
         """Whatever the autopilot needs before it accepts :attr:`target_mode`."""
 
     def enter(self, config: TickConfig, clock: Clock, altitude_m: float) -> None:
-        """Mode, arming and (copters, with ``--arm``) the climb to ``altitude_m``."""
+        """Armed state first, then the mode, arming and (copters, with ``--arm``, unless already
+        airborne) the climb to ``altitude_m``. A refusal after the mode change puts back the mode
+        the vehicle was in."""
         s = self.s
+        armed_before = s.link.state.armed
+        if not armed_before and not s.opt.arm:
+            raise FlightAborted("the vehicle is disarmed: arm it, or pass --arm (no mode changed, "
+                                "no setpoint sent)")
+        before = (s.link.state.custom_mode, s.link.mode_text())
         self.before_mode(config, clock)
-        mode = self.target_mode
+        self._switch_to(self.target_mode)
+        try:
+            if not s.link.state.armed:
+                if not s.opt.arm:
+                    raise FlightAborted("the vehicle disarmed before the path started (arm it, or pass --arm)")
+                self.arm()
+            if s.opt.arm and s.link.info.vehicle == "copter":
+                if self.airborne(armed_before):
+                    p = s.link.state.position
+                    s.event(f"already airborne at {-p.z_ned_m:.1f} m: no takeoff")
+                else:
+                    self.climb(config, altitude_m)
+        except FlightAborted as err:
+            raise FlightAborted(f"{err}{self._restore(*before)}") from None
+
+    def _switch_to(self, mode: str) -> None:
+        s = self.s
         if not s.link.in_mode(mode):
             result = s.link.set_mode(mode, wait_ack_s=1.0, retries=3, idle=s.idle)
             if result != 0:
+                s.keepalive_config = None
                 raise FlightAborted(f"the autopilot refused {mode.upper()} mode ({result_text(result)})")
         end = time.monotonic() + MODE_REPORT_TIMEOUT_S
         while not s.link.in_mode(mode):
             if time.monotonic() > end:
+                s.keepalive_config = None
                 raise FlightAborted(f"the vehicle did not report {mode.upper()} mode within 3 s")
             s.pump(0.02)
         s.event(f"in {mode.upper()} mode")
-        if s.opt.arm and not s.link.state.armed:
-            self.arm()
-        if not s.link.state.armed:
-            raise FlightAborted("the vehicle is not armed (arm it, or pass --arm)")
-        if s.opt.arm and s.link.info.vehicle == "copter":
-            self.climb(config, altitude_m)
+
+    def _restore(self, custom_mode: int | None, name: str) -> str:
+        """After a refusal in the flight mode: ask for the mode the vehicle was in (never fights a
+        pilot who already left it). Returns what was done, for the error line."""
+        s = self.s
+        s.keepalive_config = None
+        if custom_mode is None or not s.link.in_mode(self.target_mode) or s.link.in_mode_value(custom_mode):
+            return ""
+        try:
+            result = s.link.set_custom_mode(custom_mode, wait_ack_s=1.0, retries=3, idle=s.idle)
+        except LinkError:
+            result = None
+        if result == 0:
+            s.event(f"mode set back to {name or custom_mode}", MAV_SEVERITY_WARNING)
+            return f"; mode set back to {name or custom_mode}"
+        return (f"; could not set the mode back to {name or custom_mode} ({result_text(result)}): "
+                "select it on the ground station")
+
+    def airborne(self, armed_before: bool) -> bool:
+        """Already flying: the autopilot says so (EXTENDED_SYS_STATE), or, when it does not say,
+        it was armed before the companion started and is above :data:`AIRBORNE_MIN_ALT_M`."""
+        st = self.s.link.state
+        if st.landed_state in (MAV_LANDED_STATE_IN_AIR, MAV_LANDED_STATE_ON_GROUND):
+            return st.landed_state == MAV_LANDED_STATE_IN_AIR
+        p = st.position
+        return armed_before and p is not None and -p.z_ned_m > AIRBORNE_MIN_ALT_M
 
     def arm(self) -> None:
-        """Arm, retrying until ``--arm-timeout-s`` and reporting the autopilot's reasons."""
+        """Arm, retrying until ``--arm-timeout-s`` and reporting the autopilot's reasons.
+
+        An ACCEPTED arm command is not yet an armed vehicle: PX4 acknowledges before its next
+        HEARTBEAT carries the armed flag. After an ACCEPTED the flag is awaited for
+        :data:`ARM_REPORT_TIMEOUT_S` before the attempt counts as refused.
+        """
         s = self.s
         end = time.monotonic() + s.opt.arm_timeout_s
-        n0 = len(s.link.state.statustext)
+        n0 = s.link.state.statustext_count
         last_reason = ""
         while not s.link.state.armed:
             result = s.link.arm(wait_ack_s=1.0, retries=1, idle=s.idle)
-            s.pump(0.3)
+            wait_end = time.monotonic() + (ARM_REPORT_TIMEOUT_S if result == 0 else 0.3)
+            while not s.link.state.armed and time.monotonic() < wait_end:
+                s.pump(0.02)
             if s.link.state.armed:
                 break
             reasons = s.statustext_since(n0)
-            n0 = len(s.link.state.statustext)
-            reason = "; ".join(reasons) or result_text(result)
+            n0 = s.link.state.statustext_count
+            reason = "; ".join(reasons) or (
+                f"ACCEPTED, but no HEARTBEAT showed the vehicle armed within {ARM_REPORT_TIMEOUT_S:g} s"
+                if result == 0 else result_text(result))
             if reason != last_reason:
-                s.event(f"arming refused: {reason} (retrying until --arm-timeout-s)")
+                s.event(f"arming refused: {reason} (retrying until --arm-timeout-s)", MAV_SEVERITY_WARNING)
                 last_reason = reason
             if time.monotonic() > end:
                 raise FlightAborted(f"could not arm within {s.opt.arm_timeout_s:g} s: {last_reason}")

@@ -2,17 +2,23 @@
 
 Sequence (details and the reasons in ``docs/flying.md`` and ``docs/failsafes.md``):
 
-1. open the tlog (refuse to start if it cannot be written) and write the mission beside it;
-2. open the link, wait for the autopilot's heartbeat, pair with it (PX4 or ArduPilot);
-3. request LOCAL_POSITION_NED at the loop rate and ATTITUDE with SET_MESSAGE_INTERVAL (ACK checked);
-4. wait for a valid position; refuse to start farther than ``max_start_distance_m`` from the path;
-5. modes: PX4 -> stream hold setpoints >= 1 s, then OFFBOARD, then (``--arm``) arm;
+1. check that the tlog can be written (creating nothing), open the link, wait for the
+   autopilot's heartbeat with a status line, pair with it (PX4 or ArduPilot); only then create
+   the tlog (with what the link kept in memory since it opened) and the mission beside it, so a
+   failed connection leaves no file;
+2. request LOCAL_POSITION_NED at the loop rate and ATTITUDE with SET_MESSAGE_INTERVAL (ACK checked);
+3. wait up to ``--position-timeout-s`` for a valid position, showing what the autopilot says
+   (GPS, EKF flags, STATUSTEXT); refuse to start farther than ``max_start_distance_m`` from the path;
+4. armed state first: a disarmed vehicle without ``--arm`` is refused before any mode change;
+   modes: PX4 -> stream hold setpoints >= 1 s, then OFFBOARD, then (``--arm``) arm;
    ArduPilot -> GUIDED, then (``--arm``) arm with retries until ``arm_timeout_s`` showing the
-   autopilot's STATUSTEXT reasons, then NAV_TAKEOFF;
-6. the loop: every tick :func:`companion.loop.tick.compute_tick` on the newest position, send the
-   setpoint, record it; failsafes: stale position -> hold, heartbeat lost -> stop and exit, the
-   vehicle leaving OFFBOARD/GUIDED -> stop commanding at once and never switch back;
-7. at the end of the path, the ``on_finish`` action for this autopilot.
+   autopilot's STATUSTEXT reasons, then NAV_TAKEOFF unless already airborne; an arming refusal
+   puts back the mode the vehicle was in;
+5. the loop: every tick :func:`companion.loop.tick.compute_tick` on the newest position, the
+   flight-health checks (:mod:`companion.loop.health`), send the setpoint, record it; failsafes:
+   stale position -> hold, heartbeat lost -> stop and exit, the vehicle leaving OFFBOARD/GUIDED
+   -> stop commanding at once and never switch back, no progress / runaway -> hold, stop (exit 3);
+6. at the end of the path, the ``on_finish`` action for this autopilot.
 
 A ``geodetic`` mission is moved onto the autopilot's own local origin before step 4: the runner
 asks for GPS_GLOBAL_ORIGIN (MAV_CMD_REQUEST_MESSAGE 49) and translates the path and start by the
@@ -39,10 +45,20 @@ import numpy as np
 from companion.errors import CompanionError, FlightAborted, LinkError
 from companion.geometry import frames
 from companion.guidance.types import GuidanceLaw
-from companion.io.link import MAV_CMD_SET_MESSAGE_INTERVAL, MSG_ID_ATTITUDE, MSG_ID_LOCAL_POSITION_NED, MavLink
+from companion.io.link import (
+    MAV_CMD_SET_MESSAGE_INTERVAL,
+    MSG_ID_ATTITUDE,
+    MSG_ID_LOCAL_POSITION_NED,
+    READINESS_MSG_IDS,
+    MavLink,
+    connect_autopilot,
+    readiness_text,
+)
+from companion.io.setpoints import G_M_S2
 from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_beside
 from companion.loop.driver import make_guidance
 from companion.loop.flight import AutopilotClock, FlightLoop, FlightRecord
+from companion.loop.health import HealthMonitor, HealthOptions, midcourse_allowance_m
 from companion.loop.profiles import AutopilotProfile, profile_for
 from companion.loop.scheduler import Clock, MonotonicClock
 from companion.loop.session import LinkSession, Status, result_text
@@ -68,7 +84,7 @@ class FlyOptions:
     stale_s: float = DEFAULT_STALE_S
     link_timeout_s: float = 5.0
     heartbeat_timeout_s: float = 15.0
-    position_timeout_s: float = 10.0
+    position_timeout_s: float = 90.0  # a cold-started ArduCopter has a position ~40 s after boot
     arm: bool = False
     takeoff_alt_m: float | None = None
     arm_timeout_s: float = 90.0
@@ -88,6 +104,7 @@ class FlyOptions:
     max_coast_turn_s: float = 0.3  # coasting keeps turning this long (loop clock), then flies straight
     attitude_rate_hz: float = 20.0
     origin_timeout_s: float = 10.0  # geodetic missions: wait this long for GPS_GLOBAL_ORIGIN
+    health: HealthOptions = HealthOptions()
 
     def __post_init__(self) -> None:
         for name in ("rate_hz", "stale_s", "link_timeout_s", "heartbeat_timeout_s", "arm_timeout_s",
@@ -143,6 +160,7 @@ class FlightRunner:
         self.exit_reason = "not started"
         self.session: LinkSession | None = None
         self.flight: FlightLoop | None = None
+        self._failed_link_counters: dict = {}  # a pairing that failed: what its link counted
 
     @property
     def setpoints_sent(self) -> int:
@@ -162,22 +180,28 @@ class FlightRunner:
     # ------------------------------------------------------------------ steps before the loop
 
     def _open(self) -> LinkSession:
-        self.tlog = TlogWriter(self.tlog_path).open()
+        writer = TlogWriter(self.tlog_path).check_writable()
+        try:
+            self.link = connect_autopilot(
+                self.opt.connect,
+                heartbeat_timeout_s=self.opt.heartbeat_timeout_s,
+                progress=self.status.live,
+                source_system=self.opt.source_system,
+                source_component=self.opt.source_component,
+                signing_key=self.opt.signing_key,
+                target_system=self.opt.target_system,
+                autopilot=self.opt.autopilot,
+            )
+        except LinkError as err:
+            self._failed_link_counters = err.counters or {}
+            raise
+        self.tlog = writer.open()
         write_mission_beside(self.tlog_path, self.mission.source_text or "")
-        self.link = MavLink(
-            self.opt.connect,
-            source_system=self.opt.source_system,
-            source_component=self.opt.source_component,
-            signing_key=self.opt.signing_key,
-            tlog=self.tlog,
-            target_system=self.opt.target_system,
-            autopilot=self.opt.autopilot,
-        )
-        info = self.link.wait_heartbeat(self.opt.heartbeat_timeout_s)
+        self.link.attach_tlog(self.tlog)
+        info = self.link.info
         self.session = LinkSession(self.link, self.opt, self.status, self.events)
         self._event(f"paired with {info.autopilot} {info.vehicle} (system {info.system_id}, "
                     f"component {info.component_id}) on {self.opt.connect}")
-        self.link.send_heartbeat()
         return self.session
 
     def _request_streams(self, s: LinkSession) -> None:
@@ -187,6 +211,9 @@ class FlightRunner:
                                          wait_ack_s=1.0, retries=3, idle=s.idle)
             if result != 0:
                 s.event(f"warning: SET_MESSAGE_INTERVAL {name} {rate:g} Hz: {result_text(result)}")
+        # What explains a wait for the position (GPS, EKF, landed state): 1 Hz, not waited for.
+        for msg_id in READINESS_MSG_IDS:
+            s.link.command_long(MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, 1.0e6), wait_ack_s=0.0, retries=1)
 
     def _align_geodetic_mission(self, s: LinkSession) -> None:
         """Geodetic mission: move its path onto the autopilot's EKF origin (or refuse to fly)."""
@@ -208,15 +235,30 @@ class FlightRunner:
         )
 
     def _wait_position(self, s: LinkSession) -> None:
-        end = time.monotonic() + self.opt.position_timeout_s
+        """Wait for the autopilot's position estimate (a cold-started ArduCopter: ~40 s), with a
+        status line saying what is awaited and what the autopilot says; its STATUSTEXTs become
+        events. No position within ``--position-timeout-s`` -> LinkError (exit 2)."""
+        t0 = time.monotonic()
+        end = t0 + self.opt.position_timeout_s
+        n_text, last_text = 0, ""
         while s.link.state.position is None:
             if s.link.state.heartbeats:
                 s.check_link()
+            for text in s.statustext_since(n_text):
+                if text != last_text:  # autopilots repeat their pre-arm reasons
+                    s.event(f"autopilot: {text}", record=False)
+                last_text = text
+            n_text = s.link.state.statustext_count
+            why = readiness_text(s.link.state)
             if time.monotonic() > end:
                 raise LinkError(
-                    f"{self.opt.connect}: no valid LOCAL_POSITION_NED within "
-                    f"{self.opt.position_timeout_s:g} s (position estimate not ready?)"
+                    f"{self.opt.connect}: no valid LOCAL_POSITION_NED within --position-timeout-s "
+                    f"{self.opt.position_timeout_s:g} (position estimate not ready"
+                    f"{': ' + why if why else ''})"
                 )
+            self.status.live(f"waiting for the position estimate (LOCAL_POSITION_NED): "
+                             f"{time.monotonic() - t0:.0f} s of {self.opt.position_timeout_s:g} s"
+                             f"{'; ' + why if why else ''}")
             s.pump(0.05)
 
     def _check_start_distance(self, s: LinkSession) -> None:
@@ -240,6 +282,15 @@ class FlightRunner:
         if config.output == "attitude" and self._on_finish_action() == "land":
             raise FlightAborted("--on-finish land is not available for a fixed-wing flight; use rtl or loiter")
         return config
+
+    def _health_monitor(self, config: TickConfig) -> HealthMonitor:
+        """The flight-health checks of this flight: the mid-course bound widened by the initiation
+        circle, or for a fixed wing by its tightest turn at the bank limit."""
+        v = self.mission.speed_m_s
+        a_max = (G_M_S2 * math.tan(math.radians(self.opt.max_bank_deg))
+                 if config.output == "attitude" else math.inf)
+        allowance = midcourse_allowance_m(self.mission.guidance.circle_radius_m, v, a_max)
+        return HealthMonitor(self.opt.health, v, clock=self.opt.clock, midcourse_allowance_m=allowance)
 
     def _on_finish_action(self) -> str:
         return self.opt.on_finish or self.mission.on_finish
@@ -279,7 +330,9 @@ class FlightRunner:
         try:
             s, profile, config, clock, guidance = self._prepare()
             self.flight = FlightLoop(s, guidance, config, clock, profile.target_mode,
-                                     self.mission.path.start_heading_rad, self.tlog, self.record)
+                                     self.mission.path.start_heading_rad, self.tlog, self.record,
+                                     health=self._health_monitor(config),
+                                     path_length_m=self.mission.path.length_m)
             with _flight_interpreter():
                 self.exit_reason = self.flight.run()
             if self.exit_reason == "finished":
@@ -311,7 +364,10 @@ class FlightRunner:
 
     def _summarise(self) -> dict:
         r = self.record
-        keep = [i for i, h in enumerate(r.hold) if not h and math.isfinite(r.crosstrack_m[i])]
+        # The end-of-path tick (phase "finished", zero length) is not a phase of the flight:
+        # sim, demo and fly report the same phases under the same names.
+        keep = [i for i, h in enumerate(r.hold)
+                if not h and math.isfinite(r.crosstrack_m[i]) and r.phase[i] != "finished"]
         m = tracking_metrics([r.t_s[i] for i in keep], [r.crosstrack_m[i] for i in keep],
                              [r.a_cmd_m_s2[i] for i in keep], [r.phase[i] for i in keep],
                              **profile_errors(self.mission.profile, [r.s_proj_m[i] for i in keep],
@@ -330,7 +386,7 @@ class FlightRunner:
             "clock": self.opt.clock,
             "exit": self.exit_reason,
             "tlog": str(self.tlog_path),
-            "link": self.link.counters() if self.link is not None else {},
+            "link": self.link.counters() if self.link is not None else self._failed_link_counters,
         })
         if self.origin_shift is not None:
             m["origin_offset_enu_m"] = [self.origin_shift.east_m, self.origin_shift.north_m]

@@ -5,8 +5,10 @@ status, our heartbeat and (PX4, while arming and climbing) the stream of hold se
 OFFBOARD alive. The per-autopilot steps (:mod:`companion.loop.profiles`), the flight loop
 (:mod:`companion.loop.flight`) and the runner (:mod:`companion.loop.runner`) all act through it.
 
-Operator events go to the ``companion`` logger (standard :mod:`logging`) and to :class:`Status`,
-the stderr line a user watches.
+Operator events go to the ``companion`` logger (standard :mod:`logging`), to :class:`Status`,
+the stderr line a user watches, and into the tlog as STATUSTEXT from the companion's own
+component (:meth:`companion.io.link.MavLink.record_event`), so that ``companion log summary`` and
+``companion replay`` list the companion's decisions beside the autopilot's messages.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import time
 from typing import TYPE_CHECKING, TextIO
 
 from companion.errors import FlightAborted, LinkError
-from companion.io.link import MAV_RESULT_NAMES, MavLink
+from companion.io.link import MAV_RESULT_NAMES, MAV_SEVERITY_INFO, MavLink
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.loop.tick import TickConfig, course_from_sample, hold_for
 
@@ -87,11 +89,15 @@ class LinkSession:
         self.keepalive_config: TickConfig | None = None
         self._last_keepalive_s = -math.inf
 
-    def event(self, text: str) -> None:
-        """An operator event: the log, the event list and the status line."""
+    def event(self, text: str, severity: int = MAV_SEVERITY_INFO, *, record: bool = True) -> None:
+        """An operator event: the log, the event list, the status line and (``record``) the tlog
+        as a STATUSTEXT of ``severity`` (a MAV_SEVERITY). The autopilot's own messages shown as
+        events are not recorded again: the tlog already holds them."""
         log.info(text)
         self.events.append(text)
         self.status.event(text)
+        if record:
+            self.link.record_event(text, severity)
 
     def idle(self) -> None:
         """Keep our heartbeat going while waiting for anything (and PX4's setpoint stream)."""
@@ -141,7 +147,9 @@ class LinkSession:
             self.pump(poll_s)
 
     def statustext_since(self, n0: int) -> list[str]:
-        return [t for _, t in self.link.state.statustext[n0:]]
+        """The autopilot's STATUSTEXTs since its ``statustext_count`` was ``n0`` (at most the last 50)."""
+        new = self.link.state.statustext_count - n0
+        return [t for _, t in self.link.state.statustext[-new:]] if new > 0 else []
 
     def hold_now(self, config: TickConfig) -> None:
         """Send one hold setpoint (zero velocity, altitude held) for the pre-stream."""

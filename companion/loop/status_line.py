@@ -30,7 +30,8 @@ class StatusFields:
     ``rate_hz`` is the scheduler's achieved rate so far (NaN before two ticks); ``rejected`` the
     link's rejected-packet counts by reason; ``mode`` the autopilot's mode name (``""``: not
     known); ``armed`` None when not known; ``path_fraction`` the along-path progress
-    ``s / length`` (0..1); ``health`` a health check's short verdict (``""`` when ok).
+    ``s / length`` (0..1); ``health`` a health check's short verdict (``""`` when ok); ``ignored``
+    the messages whose id the dialect does not know (not errors; shown when nonzero).
     """
 
     t_s: float
@@ -46,6 +47,7 @@ class StatusFields:
     ground_speed_m_s: float = math.nan
     path_fraction: float = math.nan
     health: str = ""
+    ignored: int = 0
 
 
 def _num(value, fmt: str, width: int) -> str:
@@ -71,6 +73,8 @@ def format_status_line(s: StatusFields) -> str:
             f"gs {_num(s.ground_speed_m_s, '.1f', 0)} m/s  path {_num(pct, '.0f', 3)} %  "
             f"xtrack {_num(s.crosstrack_m, '+.2f', 6)} m  a_cmd {_num(s.a_cmd_m_s2, '+.2f', 6)} m/s2  "
             f"{_num(s.rate_hz, '.1f', 6)} Hz  {link}  rejected {rej}")
+    if s.ignored:
+        line += f"  ignored {s.ignored} (unknown ids)"
     if s.health:
         line += f"  {s.health}"
     return line

@@ -4,7 +4,10 @@ It streams HEARTBEAT (5 Hz), LOCAL_POSITION_NED (50 Hz) and ATTITUDE (20 Hz) to 
 udpin port, ACKs commands, obeys DO_SET_MODE / arming, and integrates the last velocity setpoint.
 Knobs for faults: ``drop_positions_at_s`` (stop the position stream, keep the rest),
 ``mode_change_at_s`` (a "pilot" selects another mode), ``arm_refusals`` (refuse N arm requests
-with a STATUSTEXT reason).
+with a STATUSTEXT reason), ``arm_delay_s`` (ACK an arm command ACCEPTED at once, show the armed
+flag in the HEARTBEAT only this much later, as PX4 does), ``positions_from_s`` (no position
+before then; a STATUSTEXT and an EKF_STATUS_REPORT say why), ``unknown_ids_hz`` (frames with a
+message id the dialect does not know, as a real PX4 sends).
 """
 
 from __future__ import annotations
@@ -34,7 +37,8 @@ PX4_HOLD = (4 << 16) | (3 << 24)
 
 class KinematicAutopilot(threading.Thread):
     def __init__(self, dest, autopilot="px4", x=0.0, y=0.0, alt=10.0, vn=0.0, ve=0.0, armed=True,
-                 drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0, mode_return_at_s=None):
+                 drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0, mode_return_at_s=None,
+                 arm_delay_s=0.0, positions_from_s=0.0, unknown_ids_hz=0.0):
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -54,6 +58,10 @@ class KinematicAutopilot(threading.Thread):
         self.mode_return_at_s = mode_return_at_s  # the "pilot" selects OFFBOARD/GUIDED again
         self._returned = False
         self.arm_refusals = arm_refusals
+        self.arm_delay_s = arm_delay_s
+        self.armed_at_s = None
+        self.positions_from_s = positions_from_s
+        self.unknown_ids_hz = unknown_ids_hz
         self.stop_flag = threading.Event()
         self.setpoints = []  # (t_s, msg) received
         self.commands = []
@@ -86,11 +94,20 @@ class KinematicAutopilot(threading.Thread):
                 self.custom_mode = self.guided_mode
                 self._returned = True
             tb = int(t * 1000)
+            if self.armed_at_s is not None and t >= self.armed_at_s:
+                self.armed, self.armed_at_s = True, None
             if t >= next_hb:
                 base = 1 | (128 if self.armed else 0)
                 self.mav.heartbeat_send(2, self.ap_code, base, self.custom_mode, 4)
+                if t < self.positions_from_s:
+                    self.mav.statustext_send(4, b"PreArm: Need Position Estimate")
+                    self.mav.ekf_status_report_send(1 | 2, 0, 0, 0, 0, 0)
+                if self.unknown_ids_hz > 0:
+                    unknown = bytes([0xFD, 1, 0, 0, self.mav.seq, 1, 1, 0x39, 0x30, 0x00, 0x00, 0x12, 0x34])
+                    for _ in range(max(1, round(self.unknown_ids_hz * 0.2))):
+                        self.mav.file.write(unknown)
                 next_hb = t + 0.2
-            if t >= next_pos:
+            if t >= next_pos and t >= self.positions_from_s:
                 dropped = self.drop_positions_at_s is not None and self.offboard_entered_s is not None and \
                     t - self.offboard_entered_s >= self.drop_positions_at_s
                 if not dropped:
@@ -133,6 +150,8 @@ class KinematicAutopilot(threading.Thread):
                         self.arm_refusals -= 1
                         self.mav.statustext_send(4, b"PreArm: EKF not ready")
                         result = 1
+                    elif m.param1 and self.arm_delay_s > 0:
+                        self.armed_at_s = t + self.arm_delay_s
                     else:
                         self.armed = bool(m.param1)
                 self.mav.command_ack_send(m.command, result)

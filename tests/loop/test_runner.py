@@ -36,12 +36,12 @@ def line_mission():
     return Mission(name="line", path=path, speed_m_s=5.0, altitude_m=10.0, source_text="name: line\n")
 
 
-def fly(port, tmp_path, peer, guidance, **kw):
+def fly(port, tmp_path, peer, guidance, status=None, **kw):
     opts = dict(connect=f"udpin:127.0.0.1:{port}", rate_hz=50.0, tlog_path=str(tmp_path / "f.tlog"),
                 heartbeat_timeout_s=5.0)
     opts.update(kw)
     peer.start()
-    runner = FlightRunner(line_mission(), FlyOptions(**opts), Status(quiet=True), guidance=guidance)
+    runner = FlightRunner(line_mission(), FlyOptions(**opts), status or Status(quiet=True), guidance=guidance)
     try:
         runner.run()
     finally:
@@ -87,6 +87,8 @@ def test_px4_flight_streams_a_second_before_offboard_and_records_every_setpoint(
     assert first.y_m == pytest.approx(1.0, abs=1e-6)
     assert first.course_rad == pytest.approx(math.pi / 2, abs=1e-6) and first.speed_m_s == 5.0
     assert s["d_rms_m"] >= 0 and s["samples"] > 0
+    # The end-of-path tick is not a phase: the names and phases are the simulator's.
+    assert "finished" not in s["phases"]
 
 
 def test_dropped_position_stream_holds_within_one_tick_of_the_stale_limit(free_udp_port, tmp_path):
@@ -138,12 +140,12 @@ def test_refuses_to_start_far_from_the_path(free_udp_port, tmp_path):
     assert peer.setpoints == []
 
 
-def test_no_heartbeat_is_a_clear_link_error(free_udp_port, tmp_path):
+def test_no_heartbeat_is_a_clear_link_error_and_leaves_no_file(free_udp_port, tmp_path):
     opts = FlyOptions(connect=f"udpin:127.0.0.1:{free_udp_port}", rate_hz=50.0,
-                      tlog_path=str(tmp_path / "f.tlog"), heartbeat_timeout_s=0.5)
+                      tlog_path=str(tmp_path / "logs" / "f.tlog"), heartbeat_timeout_s=0.5)
     with pytest.raises(LinkError, match="no HEARTBEAT"):
         FlightRunner(line_mission(), opts, Status(quiet=True), guidance=StraightLineGuidance()).run()
-    assert (tmp_path / "f.tlog").exists()
+    assert list(tmp_path.rglob("*")) == []  # no empty tlog, no mission copy, not even logs/
 
 
 def test_heartbeat_loss_stops_and_leaves_a_readable_tlog(free_udp_port, tmp_path):
@@ -252,3 +254,83 @@ def test_px4_ground_start_offboard_then_arm_then_climb_before_the_path(free_udp_
     debug = [m for m in tlog_messages(tmp_path / "f.tlog") if m.get_type() == "DEBUG_FLOAT_ARRAY"]
     assert debug[0].data[21] >= 9.0  # alt_m of the first guidance tick
     assert runner.summary["exit"] == "max duration" and g.calls
+
+
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_a_disarmed_vehicle_without_arm_is_refused_before_any_mode_change(free_udp_port, tmp_path, autopilot):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), autopilot, alt=0.0, armed=False)
+    with pytest.raises(FlightAborted, match="disarmed") as info:
+        fly(free_udp_port, tmp_path, peer, StraightLineGuidance())
+    assert "\n" not in str(info.value)
+    assert [m for _, m in peer.commands if m.command == 176] == []  # no DO_SET_MODE
+    assert peer.setpoints == []  # not even PX4's pre-stream
+    assert peer.custom_mode == peer.hold_mode
+
+
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_an_arming_refusal_puts_back_the_mode_the_vehicle_was_in(free_udp_port, tmp_path, autopilot):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), autopilot, alt=0.0, armed=False, arm_refusals=1000)
+    with pytest.raises(FlightAborted, match="could not arm within 1 s: PreArm: EKF not ready; mode set back to"):
+        fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), arm=True, arm_timeout_s=1.0)
+    modes = [int(m.param2) for _, m in peer.commands if m.command == 176]
+    flight_main = 6 if autopilot == "px4" else 4  # OFFBOARD main mode, GUIDED
+    hold_main = 4 if autopilot == "px4" else 5  # AUTO (Loiter sub-mode), LOITER: what it was in
+    assert modes == [flight_main, hold_main]
+    assert peer.custom_mode == peer.hold_mode
+
+
+def test_px4_arm_acknowledged_before_its_heartbeat_shows_it_is_not_a_refusal(free_udp_port, tmp_path):
+    # PX4 ACKs ACCEPTED at once; its HEARTBEAT carries the armed flag later (here 1 s).
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", alt=0.0, armed=False, arm_delay_s=1.0)
+    runner = fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), arm=True, max_duration_s=0.3)
+    assert not any("arming refused" in e for e in runner.events), runner.events
+    assert sum(1 for _, m in peer.commands if m.command == 400) == 1
+    assert "armed" in runner.events
+
+
+def test_an_airborne_ardupilot_copter_with_arm_flies_without_a_takeoff(free_udp_port, tmp_path):
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "ardupilot", alt=10.0, armed=True, ve=5.0)
+    runner = fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), arm=True, max_duration_s=0.5)
+    assert not any(m.command == 22 for _, m in peer.commands)  # no NAV_TAKEOFF
+    assert any(e.startswith("already airborne at 10.0 m") for e in runner.events)
+    assert runner.summary["exit"] == "max duration"
+
+
+def test_the_position_wait_shows_the_autopilots_reasons_and_ends_in_one_line(free_udp_port, tmp_path):
+    import io
+    import re
+
+    assert FlyOptions(connect="udpin:0.0.0.0:14540", rate_hz=50.0).position_timeout_s == 90.0
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "ardupilot", positions_from_s=math.inf)
+    stream = io.StringIO()
+    with pytest.raises(LinkError) as info:
+        fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), status=Status(stream), position_timeout_s=1.5)
+    msg = str(info.value)
+    assert "\n" not in msg and "no valid LOCAL_POSITION_NED within --position-timeout-s 1.5" in msg
+    assert "EKF lacks relative position, absolute position" in msg and "PreArm: Need Position Estimate" in msg
+    out = stream.getvalue()
+    assert re.search(r"waiting for the position estimate \(LOCAL_POSITION_NED\): \d s of 1.5 s; EKF lacks", out)
+    assert out.count("companion: autopilot: PreArm: Need Position Estimate") == 1  # repeats not shown
+    assert peer.setpoints == [] and not [m for _, m in peer.commands if m.command == 176]
+
+
+def test_the_status_line_shows_mode_armed_altitude_ground_speed_and_path_share(free_udp_port, tmp_path):
+    import io
+    import re
+
+    # A real PX4 sends ~25 messages a second whose ids the dialect does not know.
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", alt=10.0, ve=5.0, unknown_ids_hz=25.0)
+    stream = io.StringIO()
+    runner = fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), status=Status(stream), max_duration_s=2.5)
+    lines = [ln for ln in stream.getvalue().splitlines() if ln.startswith("t ")]
+    assert len(lines) >= 2 and "nan" not in stream.getvalue()
+    last = lines[-1]
+    assert "OFFBOARD armed  alt 10.0 m  gs 5.0 m/s" in last, last
+    share = float(re.search(r"path +(\d+) %", last).group(1))
+    t_line = float(re.search(r"^t +([\d.]+) s", last).group(1))
+    r = runner.record
+    i = min(range(len(r.t_s)), key=lambda k: abs(r.t_s[k] - t_line))
+    assert share == pytest.approx(100.0 * r.x_m[i] / 200.0, abs=1.0)  # s = x east on a 200 m path
+    assert "rejected 0" in last and "ignored" in last
+    link = runner.summary["link"]
+    assert link["rejected_total"] == 0 and link["ignored_unknown_id"] >= 25
