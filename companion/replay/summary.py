@@ -105,14 +105,8 @@ def summarise_log(
             if rec.msg_id == statustext_id and rec.msg is not None:
                 _collect_statustext(rec, source, first_time, texts, open_chunks)
             if rec.msg_id == heartbeat_id and rec.msg is not None:
-                hb = rec.msg
-                identity[source] = (hb.type, hb.autopilot)
-                if hb.autopilot != MAV_AUTOPILOT_INVALID:
-                    state = (mode_name_from_heartbeat(hb), bool(hb.base_mode & MAV_MODE_FLAG_SAFETY_ARMED))
-                    if last_mode.get(source) != state:
-                        last_mode[source] = state
-                        modes.append({"time_s": rec.time_s - first_time, "system": source[0],
-                                      "component": source[1], "mode": state[0], "armed": state[1]})
+                identity[source] = (rec.msg.type, rec.msg.autopilot)
+                _note_mode(rec, source, rec.time_s - first_time, last_mode, modes)
 
     if first_time is None:
         raise LogError(f"{path}: no MAVLink records could be read ({reader.size_bytes} bytes)")
@@ -135,6 +129,18 @@ def summarise_log(
         "gap_threshold_s": float(gap_threshold_s),
         "link_gaps": link_gaps,
     }
+
+
+def _note_mode(rec, source: tuple[int, int], time_s: float, last_mode: dict, modes: list[dict]) -> None:
+    """Append to ``modes`` when an autopilot's heartbeat shows a new mode or armed state."""
+    hb = rec.msg
+    if hb.autopilot == MAV_AUTOPILOT_INVALID:
+        return
+    state = (mode_name_from_heartbeat(hb), bool(hb.base_mode & MAV_MODE_FLAG_SAFETY_ARMED))
+    if last_mode.get(source) != state:
+        last_mode[source] = state
+        modes.append({"time_s": time_s, "system": source[0], "component": source[1],
+                      "mode": state[0], "armed": state[1]})
 
 
 def _collect_statustext(rec, source, first_time, texts: list, open_chunks: dict) -> None:

@@ -369,6 +369,20 @@ def identify(s: Samples) -> IdentifyResult:
     excitation["yaw_saturated_s"] = yaw_sat_s
     excitation["yaw_rate_max_flown_rad_s"] = yaw_flown
 
+    unidentified = _unidentified(excitation, theta, se, yaw_limit, yaw_flown, len(s.t_yaw_s))
+    yaw_value = yaw_limit if yaw_limit is not None else max(yaw_flown, math.radians(1.0))
+    model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
+                         speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
+                         yaw_rate_max_deg_s=math.degrees(yaw_value))
+    std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
+    return IdentifyResult(model=model, std_errors=std, quality=quality, excitation=excitation,
+                          unidentified=unidentified)
+
+
+def _unidentified(excitation: dict[str, float], theta: np.ndarray, se: np.ndarray, yaw_limit: float | None,
+                  yaw_flown: float, n_yaw_samples: int) -> dict[str, str]:
+    """Each parameter the log cannot pin down, with the reason (too little excitation of it, or
+    a standard error over :data:`MAX_RELATIVE_SE` of its value)."""
     unidentified: dict[str, str] = {}
     if excitation["turn_changing_s"] < MIN_TURNING_S:
         for name in ("delay_s", "lag_s"):
@@ -390,16 +404,10 @@ def identify(s: Samples) -> IdentifyResult:
             unidentified[name] = (f"standard error {se[i]:.3g} is more than {MAX_RELATIVE_SE:.0%} of the "
                                   f"value {theta[i]:.3g}: the log does not pin it down")
     if yaw_limit is None:
-        if len(s.t_yaw_s) < 10:
+        if n_yaw_samples < 10:
             unidentified["yaw_rate_max_deg_s"] = "no ATTITUDE messages (yaw rate) in the log"
         else:
             unidentified["yaw_rate_max_deg_s"] = (
                 f"the yaw rate never saturated (flown up to {math.degrees(yaw_flown):.0f} deg/s as commanded): "
                 f"the limit is at least that; command faster yaw rates to find it")
-    yaw_value = yaw_limit if yaw_limit is not None else max(yaw_flown, math.radians(1.0))
-    model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
-                         speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
-                         yaw_rate_max_deg_s=math.degrees(yaw_value))
-    std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
-    return IdentifyResult(model=model, std_errors=std, quality=quality, excitation=excitation,
-                          unidentified=unidentified)
+    return unidentified
