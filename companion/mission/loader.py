@@ -279,6 +279,8 @@ class _Builder:
         values["lambda_s4"] = g["lambda_s4"]
         # Absent: no limit. (An unusable value is None here too, but the schema reported it.)
         values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
+        values["period_s"] = g.get("period_s")  # absent: the baseline's own default
+        values["lookahead_m"] = g.get("lookahead_m")
         vehicle = self.doc.get("vehicle")
         if vehicle is not None and None not in (vehicle.get("a_max_m_s2"), vehicle.get("lag_s")):
             # A vehicle model: the rollouts assume its lag (plus its dead time) and the law never
@@ -503,7 +505,7 @@ class _Builder:
         k = np.abs(path.k_table_1_m)
         i = int(np.argmax(k))
         k_max = float(k[i])
-        if g.method == "predictive":  # chooses its own look-ahead: only the vehicle's limit matters
+        if g.method not in ("fixed_l1", "corrector"):  # no guidance.l1_m: only the vehicle's limit matters
             v = g.speed_m_s
             if v * v * k_max > g.a_max_m_s2:
                 self.warn("path", f"curvature radius {1.0 / k_max:.3g} m at s = "
