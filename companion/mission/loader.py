@@ -113,6 +113,17 @@ def load_mission(file) -> Mission:
     return parse_mission(read_mission_text(file), str(file))
 
 
+def mission_text_with_method(file, method: str) -> str:
+    """The text of the (valid) mission ``file`` with its ``guidance.method`` replaced by ``method``
+    (``companion bench sitl --method``); comments are not kept."""
+    load_mission(file)  # one clear line for a bad mission
+    doc = yaml.safe_load(read_mission_text(file))
+    doc.setdefault("guidance", {})["method"] = method
+    text = yaml.safe_dump(doc, sort_keys=False)
+    parse_mission(text, f"{file} (guidance.method: {method})")
+    return text
+
+
 def parse_mission(text: str, source_name: str = "<mission>") -> Mission:
     """Validate mission YAML ``text``; ``source_name`` prefixes every error line."""
     mission, problems, _warnings = check_mission_text(text, source_name)
