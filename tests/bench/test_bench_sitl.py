@@ -30,7 +30,7 @@ def test_the_table_puts_mock_and_real_side_by_side():
     row = {"d_rms_m": 0.5, "d_max_m": 2.0, "a_rms_m_s2": 1.0, "a_max_m_s2": 2.4, "d_rms_close_m": 0.5,
            "sat_share": 0.0, "duration_s": 60.0}
     result = {"mission": "m.yaml", "method": "corrector", "max_duration_s": 60.0, "speedup": 1.0,
-              "a_limit_m_s2": 2.43, "autopilots": {"ardupilot": {
+              "autopilots": {"ardupilot": {
                   "mock": row, "real": {**row, "d_rms_m": 0.6}, "d_rms_ratio_real_mock": 1.2}}}
     text = format_table(result)
     assert "d_rms_m                0.500           0.600" in text
