@@ -263,6 +263,8 @@ class Personality:
                 "MPC_XY_VEL_MAX": Param(v_max_m_s, f),
                 "MPC_Z_VEL_MAX_UP": Param(3.0, f),
                 "MPC_ACC_HOR_MAX": Param(a_max_m_s2, f),
+                # OFFBOARD velocity control is bounded by the tilt limit: a <= g tan(tilt).
+                "MPC_TILTMAX_AIR": Param(math.degrees(math.atan(a_max_m_s2 / 9.80665)), f),
                 "MPC_YAWRAUTO_MAX": Param(yaw_rate_max_deg_s, f),
             }
             if self.vehicle == "plane":

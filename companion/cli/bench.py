@@ -8,6 +8,7 @@ BENCH_MODULES = (
     "companion.bench.paper",
     "companion.bench.perf",
     "companion.bench.tracking",
+    "companion.bench.sitl",
 )
 
 

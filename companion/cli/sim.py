@@ -49,7 +49,7 @@ def _parse_xy(text: str) -> tuple[float, float]:
 def run(args) -> int:
     import dataclasses
 
-    from companion.guidance.two_phase import TwoPhaseGuidance
+    from companion.guidance.factory import make_law
     from companion.mission import load_mission
     from companion.guidance.profiled import ProfiledGuidance
     from companion.sim.simulator import LagModel, simulate
@@ -72,7 +72,7 @@ def run(args) -> int:
     if args.t_max_s is not None and not args.t_max_s > 0:
         raise MissionError(f"--t-max-s: expected a number > 0, got {args.t_max_s}")
     start = VehicleState(x0, y0, h0, mission.speed_m_s)
-    law = TwoPhaseGuidance(path, params)
+    law = make_law(path, params, params.rate_hz, mission.speed_m_s)
     profile = mission.profile if mission.profile is not None and not mission.profile.constant_speed else None
     flown = ProfiledGuidance(law, profile) if profile else law
     model = LagModel.from_vehicle(mission.vehicle) if mission.vehicle is not None else None
@@ -88,7 +88,7 @@ def run(args) -> int:
         "phases": {name: {k: _finite_or_none(v) for k, v in m.items()}
                    for name, m in metrics["phases"].items()},
     }
-    plan = law.midcourse_plan
+    plan = getattr(law, "midcourse_plan", None)  # the baselines have no mid-course phase
     if plan is not None:
         summary["midcourse"] = {"case": plan.case, "rule": plan.rule, "circle": plan.chosen.circle.name,
                                 "contact_xy_m": list(plan.chosen.contact_xy_m),
@@ -102,7 +102,7 @@ def run(args) -> int:
         tuning = (f"lambda {params.lambda_s4:g} s^4, lag {params.rollout_tau_s:g} s, "
                   f"a_max {params.a_max_m_s2:g} m/s^2")
     else:
-        tuning = f"L1 {params.l1_m:g} m"
+        tuning = _baseline_tuning(params) or f"L1 {params.l1_m:g} m"
     print(f"mission {mission.name}: method {params.method}, start ({x0:.3f}, {y0:.3f}) m, "
           f"heading {math.degrees(h0):.3f} deg, V {mission.speed_m_s:g} m/s, {tuning}")
     end = "path end reached" if result.finished else "time limit reached"
@@ -116,6 +116,16 @@ def run(args) -> int:
         _plot(args.plot, mission, path, result)
         print(f"plot written to {args.plot}")
     return 0
+
+
+def _baseline_tuning(params) -> str | None:
+    """What tunes a baseline law (None for the two-phase laws)."""
+    if params.method in ("ap_l1", "npfg"):
+        default = "17" if params.method == "ap_l1" else "10"
+        return f"period {params.period_s:g} s" if params.period_s is not None else f"period {default} s (default)"
+    if params.method == "pure_pursuit":
+        return f"look-ahead {params.lookahead_m if params.lookahead_m is not None else 10.0:g} m"
+    return None
 
 
 class SimProgress:

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from companion.guidance.path_frame import frame_output, path_frame
+from companion.guidance.path_frame import PathLike, frame_output, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)
@@ -148,7 +148,7 @@ class PredictiveParams:
 
     def capture_tc_s(self) -> float:
         """Time constant of the capture reference (s); 0 when it is disabled."""
-        return self.capture_tc_scale * self.lambda_s4 ** 0.25
+        return float(self.capture_tc_scale * self.lambda_s4 ** 0.25)
 
     def candidates_m(self) -> np.ndarray:
         """The look-ahead distances the search tries (geometric from l_min_m to l_max_m)."""
@@ -163,7 +163,7 @@ class _Window:
     An open path is continued straight along its end tangent, as the baselines do past the end.
     """
 
-    def __init__(self, path, s0_m: float, length_m: float):
+    def __init__(self, path: PathLike, s0_m: float, length_m: float) -> None:
         total = float(path.length_m)
         s = s0_m + np.arange(-2.0, length_m + WINDOW_SPACING_M, WINDOW_SPACING_M)
         beyond = np.zeros(0)
@@ -203,7 +203,7 @@ def _rows(n: int) -> np.ndarray:
     return r
 
 
-def _nearest(win: _Window, x: np.ndarray, y: np.ndarray):
+def _nearest(win: _Window, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Nearest sample index, signed cross-track error (positive left) and distance matrix."""
     dx = win.x[None, :] - x[:, None]
     dy = win.y[None, :] - y[:, None]
@@ -242,8 +242,9 @@ def capture_reference(d0_m: float, d_rate0_m_s: float, tc_s: float, t_s: np.ndar
     return (d0_m + (rate + d0_m / tc_s) * t) * np.exp(-t / tc_s)
 
 
-def pursuit_command(win: _Window, x, y, course_rad, speed_m_s, look_m, a_max_m_s2: float,
-                    curvature_ff: float = 0.0, lead_s: float = 0.0):
+def pursuit_command(win: _Window, x: np.ndarray, y: np.ndarray, course_rad: np.ndarray, speed_m_s: np.ndarray,
+                    look_m: np.ndarray, a_max_m_s2: float, curvature_ff: float = 0.0, lead_s: float = 0.0,
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Batched pursuit command (arrays of equal length; returns commands, L_eff, goal x, goal y,
     and the signed cross-track error at the vehicle).
 
@@ -410,7 +411,7 @@ class PredictiveGuidance:
 
     method = "predictive"
 
-    def __init__(self, path, params: PredictiveParams | None = None):
+    def __init__(self, path: PathLike, params: PredictiveParams | None = None) -> None:
         self.path = path
         self.params = params if params is not None else PredictiveParams()
         p = self.params
@@ -465,6 +466,7 @@ class PredictiveGuidance:
         """
         p = self.params
         win = self._win
+        assert win is not None  # set by reoptimise() before any rollout
         k = look_m.size
         heading, v_air = self._air(state)
         h = np.full(k, heading)
@@ -507,6 +509,7 @@ class PredictiveGuidance:
         if not tc > 0.0:
             return None
         win = self._win
+        assert win is not None  # set by reoptimise() before any rollout
         i0, d0, _ = _nearest(win, np.array([state.x_m]), np.array([state.y_m]))
         i = int(i0[0])
         vx = state.speed_m_s * math.cos(state.course_rad)
@@ -599,6 +602,7 @@ class PredictiveGuidance:
             self.reoptimise(t_s, state, f.s_m, f.crosstrack_m)
             self._next_reopt_t = t_s + p.reopt_period_s - SCHEDULE_TOLERANCE_S
             reoptimised = True
+        assert self._win is not None  # reoptimise() just set it
         a, l_eff, gx, gy, _ = pursuit_command(
             self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
             np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff,

@@ -53,6 +53,7 @@ from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
 from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
 from companion.guidance.types import (
     SCHEDULE_TOLERANCE_S,
+    TWO_PHASE_METHODS,
     GuidanceOutput,
     GuidanceParams,
     VehicleState,
@@ -72,10 +73,14 @@ class TwoPhaseGuidance:
     Parameters
     ----------
     path : the reference path (local ENU).
-    params : tuning; ``params.method`` selects constant L1 or the corrector-aided law.
+    params : tuning; ``params.method`` selects constant L1, the corrector-aided law or the
+        predictive law (a baseline method is built by :func:`companion.guidance.factory.make_law`).
     """
 
     def __init__(self, path: Path, params: GuidanceParams):
+        if params.method not in TWO_PHASE_METHODS:
+            raise ValueError(f"method: the two-phase guidance flies {', '.join(TWO_PHASE_METHODS)}, "
+                             f"got {params.method!r} (companion.guidance.factory.make_law builds it)")
         self.path = path
         self.params = params
         self._optimiser = GainOptimiser(path, params) if params.method == "corrector" else None

@@ -12,7 +12,13 @@ from typing import Any, Callable, Protocol, TypeVar
 
 from companion.geometry.checks import require_positive_finite
 
-METHODS = ("fixed_l1", "corrector", "predictive")
+#: The laws of the paper's two-phase object (:class:`companion.guidance.two_phase.TwoPhaseGuidance`).
+TWO_PHASE_METHODS = ("fixed_l1", "corrector", "predictive")
+#: The laws autopilots and textbooks fly (:mod:`companion.guidance.baselines`), flown as their
+#: sources fly them: from any start, without a mid-course phase (docs/guidance.md).
+BASELINE_METHODS = ("ap_l1", "npfg", "pure_pursuit")
+#: Every mission ``guidance.method``; :func:`companion.guidance.factory.make_law` builds each.
+METHODS = TWO_PHASE_METHODS + BASELINE_METHODS
 #: The law of a mission that names none (the mission schema's default).
 DEFAULT_METHOD = "predictive"
 #: The law of ``GuidanceParams()`` built in code (``companion bench paper``, the simulator's tests):
@@ -36,9 +42,11 @@ class GuidanceParams:
 
     Attributes
     ----------
-    method : ``"fixed_l1"`` (Park 2007), ``"corrector"`` (the paper's corrector-aided law) or
+    method : ``"fixed_l1"`` (Park 2007), ``"corrector"`` (the paper's corrector-aided law),
         ``"predictive"`` (:mod:`companion.guidance.predictive`: pursuit plus a receding-horizon plan
-        over a model of the vehicle; the close-range phase only, mid-course is the same).
+        over a model of the vehicle; the close-range phase only, mid-course is the same), or one
+        of the baselines ``"ap_l1"`` (ArduPilot's L1), ``"npfg"`` (PX4's NPFG), ``"pure_pursuit"``
+        (:mod:`companion.guidance.baselines`; no mid-course phase).
     l1_m : look-ahead distance L1 of the close-range phase.
     speed_m_s : the vehicle's constant ground speed V.
     rate_hz : guidance rate (the fixed tick).
@@ -56,6 +64,9 @@ class GuidanceParams:
     a_max_m_s2 : ``predictive`` only: the vehicle's lateral-acceleration limit (> 0, ``math.inf``
         for none); every command is clipped to it and the rollouts know it.
     wind_x_m_s, wind_y_m_s : ``predictive`` only: known steady wind (ENU) its rollouts assume.
+    period_s : ``ap_l1`` and ``npfg`` only: the tracking-loop period T (> 0; None: the autopilot's
+        default, ArduPilot's NAVL1_PERIOD 17 s, PX4's NPFG_PERIOD 10 s).
+    lookahead_m : ``pure_pursuit`` only: its look-ahead distance L_d (> 0; None: 10 m).
     adapt_model : ``predictive`` only: watch the flown lateral acceleration and re-plan with the
         model that explains it, or fall back to the feedback core (on when the mission has a
         ``vehicle:`` block; :class:`companion.guidance.predictive.ModelMonitor`).
@@ -76,6 +87,8 @@ class GuidanceParams:
     wind_x_m_s: float = 0.0
     wind_y_m_s: float = 0.0
     adapt_model: bool = False
+    period_s: float | None = None
+    lookahead_m: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.adapt_model, bool):
@@ -92,6 +105,11 @@ class GuidanceParams:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise ValueError(f"{name}: expected a finite number, got {value!r}")
+        for name in ("period_s", "lookahead_m"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not (
+                    isinstance(value, (int, float)) and math.isfinite(value) and value > 0)):
+                raise ValueError(f"{name}: expected a finite number > 0 (or none), got {value!r}")
         value = self.a_max_m_s2
         if isinstance(value, bool) or not (isinstance(value, (int, float)) and value > 0):
             raise ValueError(f"a_max_m_s2: expected a number > 0 (inf for no limit), got {value!r}")

@@ -85,6 +85,7 @@ MSG_ID_GPS_GLOBAL_ORIGIN = mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN
 #: them at 1 Hz; each fills a field of :class:`LinkState` when the autopilot sends it.
 READINESS_MSG_IDS = (mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT, mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
                      mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)
+MAV_PARAM_TYPE_REAL32 = mavlink2.MAV_PARAM_TYPE_REAL32
 
 MAV_CMD_NAV_LAND = mavlink2.MAV_CMD_NAV_LAND
 MAV_CMD_NAV_TAKEOFF = mavlink2.MAV_CMD_NAV_TAKEOFF
@@ -418,6 +419,7 @@ class LinkState:
     ekf_flags: int | None = None  # EKF_STATUS_REPORT flags (ArduPilot), if sent
     gps_fix_type: int | None = None  # GPS_RAW_INT fix_type, if sent
     gps_satellites: int | None = None
+    params: dict = field(default_factory=dict)  # name -> (value, MAV_PARAM_TYPE) of each PARAM_VALUE
 
 
 #: Messages that explain why the autopilot is not ready: LinkState field <- message field.
@@ -759,6 +761,9 @@ class MavLink:
         elif mtype in _STATUS_FIELDS:
             for attr, wire in _STATUS_FIELDS[mtype]:
                 setattr(st, attr, int(getattr(msg, wire)))
+        elif mtype == "PARAM_VALUE":
+            name = msg.param_id.decode("ascii", "replace") if isinstance(msg.param_id, bytes) else str(msg.param_id)
+            st.params[name.rstrip("\x00")] = (float(msg.param_value), int(msg.param_type))
         elif mtype == "GPS_GLOBAL_ORIGIN":
             origin = global_origin_from_wire(msg.latitude, msg.longitude, msg.altitude, now)
             if origin is None:
@@ -930,6 +935,34 @@ class MavLink:
             if idle is not None:
                 idle()
         return self.state.global_origin
+
+    def read_params(self, names: tuple[str, ...], timeout_s: float, *, resend_s: float = 0.5,
+                    idle: Callable[[], None] | None = None) -> dict[str, float]:
+        """Ask for each named parameter (PARAM_REQUEST_READ by name) until all have answered or
+        ``timeout_s``; returns the finite REAL32 values received (an absent name is not in it).
+
+        A request is repeated every ``resend_s`` for the names still missing (a datagram may be
+        lost). Only float parameters are read: an integer one would need the autopilot's encoding.
+        """
+        ts, tc = self._target()
+        deadline = self.clock() + timeout_s
+        next_send = self.clock()
+        for name in names:
+            self.state.params.pop(name, None)
+        while True:
+            missing = [n for n in names if n not in self.state.params]
+            now = self.clock()
+            if not missing or now >= deadline:
+                break
+            if now >= next_send:
+                for name in missing:
+                    self._mav.param_request_read_send(ts, tc, name.encode("ascii"), -1)
+                next_send = now + resend_s
+            self.poll(min(0.02, max(0.0, deadline - now)))
+            if idle is not None:
+                idle()
+        return {n: v for n, (v, t) in self.state.params.items()
+                if n in names and t == MAV_PARAM_TYPE_REAL32 and math.isfinite(v)}
 
     def mode_number(self, name: str) -> tuple[int, int, int]:
         """(base_mode flags, custom main mode, sub mode) of a mode name for this autopilot."""

@@ -57,6 +57,7 @@ from companion.io.link import (
 from companion.io.setpoints import G_M_S2
 from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_beside
 from companion.loop.driver import make_guidance
+from companion.loop.limits import apply_autopilot_limits
 from companion.loop.flight import AutopilotClock, FlightLoop, FlightRecord
 from companion.loop.health import HealthMonitor, HealthOptions, midcourse_allowance_m
 from companion.loop.profiles import AutopilotProfile, profile_for
@@ -308,6 +309,8 @@ class FlightRunner:
         self._align_geodetic_mission(s)
         self._wait_position(s)
         self._check_start_distance(s)
+        if self._guidance is None:  # the autopilot's own acceleration limit (companion.loop.limits)
+            self.mission = apply_autopilot_limits(s.link, self.mission, s.event, s.idle)
         guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
         profile = profile_for(s.link.info, s)
         clock = self._clock(s)

@@ -113,6 +113,17 @@ def load_mission(file) -> Mission:
     return parse_mission(read_mission_text(file), str(file))
 
 
+def mission_text_with_method(file, method: str) -> str:
+    """The text of the (valid) mission ``file`` with its ``guidance.method`` replaced by ``method``
+    (``companion bench sitl --method``); comments are not kept."""
+    load_mission(file)  # one clear line for a bad mission
+    doc = yaml.safe_load(read_mission_text(file))
+    doc.setdefault("guidance", {})["method"] = method
+    text = yaml.safe_dump(doc, sort_keys=False)
+    parse_mission(text, f"{file} (guidance.method: {method})")
+    return text
+
+
 def parse_mission(text: str, source_name: str = "<mission>") -> Mission:
     """Validate mission YAML ``text``; ``source_name`` prefixes every error line."""
     mission, problems, _warnings = check_mission_text(text, source_name)
@@ -494,6 +505,8 @@ class _Builder(_Checks):
         values["lambda_s4"] = g["lambda_s4"]
         # Absent: no limit. (An unusable value is None here too, but the schema reported it.)
         values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
+        values["period_s"] = g.get("period_s")  # absent: the baseline's own default
+        values["lookahead_m"] = g.get("lookahead_m")
         model = self.build_vehicle()
         if model is not None:
             # A vehicle model: the rollouts assume its lag (plus its dead time) and the law never
@@ -523,7 +536,7 @@ class _Builder(_Checks):
         k = np.abs(path.k_table_1_m)
         i = int(np.argmax(k))
         k_max = float(k[i])
-        if g.method == "predictive":  # chooses its own look-ahead: only the vehicle's limit matters
+        if g.method not in ("fixed_l1", "corrector"):  # no guidance.l1_m: only the vehicle's limit matters
             v = g.speed_m_s
             if v * v * k_max > g.a_max_m_s2:
                 self.warn("path", f"curvature radius {1.0 / k_max:.3g} m at s = "

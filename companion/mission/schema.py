@@ -325,9 +325,16 @@ MISSION = Object(
             Object(
                 fields={
                     "method": Field(String(enum=METHODS), "guidance law: fixed_l1 (Park), corrector "
-                                    "(the paper's law) or predictive (ours; the default, ahead of "
-                                    "the others under an inner-loop lag, docs/benchmarks.md)",
+                                    "(the paper's law), predictive (ours; the default, ahead of "
+                                    "the others under an inner-loop lag, docs/benchmarks.md), or "
+                                    "the baselines ap_l1 (ArduPilot L1), npfg (PX4 NPFG), "
+                                    "pure_pursuit (no mid-course phase, docs/guidance.md)",
                                     default=DEFAULT_METHOD),
+                    "period_s": Field(Number(exclusive_minimum=0, maximum=100), "ap_l1 and npfg: "
+                                      "tracking-loop period T (absent: the autopilot's default, "
+                                      "NAVL1_PERIOD 17 s, NPFG_PERIOD 10 s)"),
+                    "lookahead_m": Field(Number(exclusive_minimum=0, maximum=1000), "pure_pursuit: "
+                                         "look-ahead distance L_d (absent: 10 m)"),
                     "l1_m": Field(_POSITIVE, "look-ahead distance L1", default=10.0),
                     "rate_hz": Field(Number(exclusive_minimum=0, maximum=1000), "guidance rate",
                                      default=50.0),

@@ -32,6 +32,7 @@ from typing import Callable, NamedTuple
 
 from companion.errors import LogError
 from companion.io.state import GlobalOrigin, global_origin_from_wire
+from companion.io.link import MAV_AUTOPILOT_INVALID, MAV_PARAM_TYPE_REAL32
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
 from companion.loop.tick import DEBUG_FIELDS, PHASE_CODES
@@ -45,7 +46,7 @@ ID_ATTITUDE = MSG_ID["ATTITUDE"]
 ID_SAT = MSG_ID["SET_ATTITUDE_TARGET"]
 ID_HEARTBEAT = MSG_ID["HEARTBEAT"]
 ID_GPS_GLOBAL_ORIGIN = MSG_ID["GPS_GLOBAL_ORIGIN"]
-MAV_AUTOPILOT_INVALID = 8
+ID_PARAM_VALUE = MSG_ID["PARAM_VALUE"]
 PROGRESS_EVERY_RECORDS = 4096
 #: A guidance row and the setpoint after it are one tick's when less than this many periods apart
 #: (a coasting setpoint follows a late row only after the runner's step budget, half a period).
@@ -127,6 +128,16 @@ class LoggedFlight:
     # The commanded autopilot's GPS_GLOBAL_ORIGIN (its local frame's origin), if the log holds one:
     # a geodetic mission is placed in the flight's frame about it, as the runner did in flight.
     origin: GlobalOrigin | None = None
+    # The autopilots' float parameters the log holds (PARAM_VALUE): the flight's acceleration limit
+    # was read from them (companion.loop.limits), and replay reads it back from here.
+    params: dict[str, float] = field(default_factory=dict)
+
+
+def _param_value(msg, params: dict[str, float]) -> None:
+    """Keep a float PARAM_VALUE (an integer one is in the autopilot's own encoding)."""
+    if int(msg.param_type) == MAV_PARAM_TYPE_REAL32 and math.isfinite(msg.param_value):
+        name = msg.param_id.decode("ascii", "replace") if isinstance(msg.param_id, bytes) else str(msg.param_id)
+        params[name.rstrip("\x00")] = float(msg.param_value)
 
 
 def _setpoint(msg) -> LoggedSetpoint:
@@ -170,12 +181,13 @@ def read_flight(
     Raises :class:`LogError` when the file has no setpoints to compare (or cannot be read).
     """
     path = Path(path)
-    wanted = {ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT, ID_HEARTBEAT, ID_GPS_GLOBAL_ORIGIN}
+    wanted = {ID_LPN, ID_SPT, ID_DFA, ID_ATTITUDE, ID_SAT, ID_HEARTBEAT, ID_GPS_GLOBAL_ORIGIN, ID_PARAM_VALUE}
     reader = TlogReader(path, decode_ids=wanted, on_warning=on_warning, light=True)
     samples_by_ms: dict[int, dict[int, PositionSample]] = {}  # system -> time_boot_ms -> sample
     newest_sample: dict[int, tuple[float, PositionSample]] = {}  # system -> (tlog time, sample)
     newest_yaw: dict[int, float] = {}
     origins: dict[int, GlobalOrigin] = {}  # system -> newest GPS_GLOBAL_ORIGIN (autopilots only)
+    params: dict[str, float] = {}  # newest float PARAM_VALUE by name (autopilots only)
     # per sender, in file order: (tlog time, LoggedSetpoint / LoggedAttitude / LoggedTick,
     # (tlog time, newest sample of the target) for setpoints)
     events: dict[tuple[int, int], list[tuple]] = {}
@@ -209,6 +221,8 @@ def read_flight(
             elif mid == ID_HEARTBEAT:
                 if msg.autopilot == MAV_AUTOPILOT_INVALID:  # a GCS, a companion, a camera
                     not_autopilots.add((rec.src_system, rec.src_component))
+            elif mid == ID_PARAM_VALUE and (rec.src_system, rec.src_component) not in not_autopilots:
+                _param_value(msg, params)
             elif mid == ID_GPS_GLOBAL_ORIGIN and (rec.src_system, rec.src_component) not in not_autopilots:
                 origin = global_origin_from_wire(msg.latitude, msg.longitude, msg.altitude, rec.time_s)
                 if origin is not None:
@@ -275,7 +289,7 @@ def read_flight(
         raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED paired with a LOCAL_POSITION_NED; "
                        "nothing to replay")
     return LoggedFlight(path, kind, ticks, coasts, list(reader.warnings), notes, reader.records,
-                        _commanded_origin(last_target, origins))
+                        _commanded_origin(last_target, origins), params)
 
 
 def _pair_companion_ticks(events: dict[tuple[int, int], list[tuple]], ticks: list[LoggedTick],

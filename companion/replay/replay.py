@@ -45,6 +45,7 @@ from companion.io.logread import LogWarning
 from companion.io.tlog import MISSION_SUFFIX, mission_path_beside
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.loop.driver import TickDriver, make_guidance
+from companion.loop.limits import limit_from_params, mission_with_limit
 from companion.loop.tick import DEFAULT_STALE_S, TickConfig
 from companion.mission import Mission, load_mission
 from companion.mission.placement import onto_autopilot_origin
@@ -204,8 +205,11 @@ def in_flight_frame(flight: LoggedFlight, mission: Mission) -> Mission:
 
     A geodetic mission is flown translated onto the autopilot's EKF origin (see
     :func:`companion.mission.placement.onto_autopilot_origin`); replay applies the same translation from
-    the GPS_GLOBAL_ORIGIN recorded in the log. Local-frame missions are returned unchanged.
+    the GPS_GLOBAL_ORIGIN recorded in the log. The acceleration limit the flight read from the
+    autopilot's parameters (:mod:`companion.loop.limits`) is applied from the PARAM_VALUEs in the log.
     """
+    if flight.kind == "companion" and flight.params:  # the limit the flight read from the autopilot
+        mission = mission_with_limit(mission, limit_from_params(flight.params))[0]
     if mission.frame != "geodetic":
         return mission
     if flight.origin is None:

@@ -69,9 +69,9 @@ def _summary_2d(t_s: np.ndarray, d_m: np.ndarray, a_m_s2: np.ndarray) -> dict[st
 
 
 def tracking_metrics(
-    t_s: Sequence[float],
-    crosstrack_m: Sequence[float],
-    a_cmd_m_s2: Sequence[float],
+    t_s: Sequence[float] | np.ndarray,
+    crosstrack_m: Sequence[float] | np.ndarray,
+    a_cmd_m_s2: Sequence[float] | np.ndarray,
     phase: Sequence[str] | None = None,
     *,
     h_err_m: Sequence[float] | None = None,

@@ -32,12 +32,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from companion.geometry.paths import Path
-from companion.guidance.types import GuidanceParams, VehicleModel, VehicleState
+from companion.guidance.types import GuidanceLaw, GuidanceOutput, GuidanceParams, VehicleModel, VehicleState
 from companion.sim.metrics import tracking_metrics
+
+if TYPE_CHECKING:
+    from companion.geometry.profile import PathProfile
 
 
 @dataclass(frozen=True)
@@ -79,12 +83,12 @@ class SimResult:
     a_cmd_m_s2: np.ndarray
     a_achieved_m_s2: np.ndarray
     crosstrack_m: np.ndarray
-    phase: list
+    phase: list[str]
     k1: np.ndarray
     k2: np.ndarray
     finished: bool
-    metrics: dict = field(default_factory=dict)
-    outputs: list = field(default_factory=list)  # the GuidanceOutput of every tick
+    metrics: dict[str, Any] = field(default_factory=dict)
+    outputs: list[GuidanceOutput] = field(default_factory=list)  # the GuidanceOutput of every tick
 
 
 def unicycle_step(x_m: float, y_m: float, heading_rad: float, speed_m_s: float,
@@ -107,9 +111,9 @@ def default_t_max_s(path: Path, start: VehicleState) -> float:
     return 3.0 * (path.length_m + dist) / max(start.speed_m_s, 0.1) + 60.0
 
 
-def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
+def simulate(path: Path, law: GuidanceLaw, start: VehicleState, params: GuidanceParams, *,
              model: LagModel | None = None, t_max_s: float | None = None,
-             keep_outputs: bool = False, profile=None) -> SimResult:
+             keep_outputs: bool = False, profile: PathProfile | None = None) -> SimResult:
     """Fly ``law`` from ``start`` until it reports ``finished`` or ``t_max_s`` elapses.
 
     Parameters
@@ -143,7 +147,7 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
     pending = [0.0] * delay_ticks  # commands issued but not yet acting (dead time), oldest first
     x, y, psi = start.x_m, start.y_m, start.course_rad
     a_ach = 0.0
-    cols = {k: [] for k in ("t", "x", "y", "course", "a", "a_ach", "d", "k1", "k2")}
+    cols: dict[str, list[float]] = {k: [] for k in ("t", "x", "y", "course", "a", "a_ach", "d", "k1", "k2")}
     phases: list[str] = []
     outputs = []
     finished = False
@@ -159,14 +163,7 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
             finished = True
             break
         a_cmd = out.a_cmd_m_s2
-        cols["t"].append(t)
-        cols["x"].append(x)
-        cols["y"].append(y)
-        cols["course"].append(course)
-        cols["a"].append(a_cmd)
-        cols["d"].append(out.crosstrack_m)
-        cols["k1"].append(out.k1)
-        cols["k2"].append(out.k2)
+        _record_tick(cols, t, x, y, course, out)
         phases.append(out.phase)
         if keep_outputs:
             outputs.append(out)
@@ -194,7 +191,16 @@ def simulate(path: Path, law, start: VehicleState, params: GuidanceParams, *,
     return _sim_result(cols, phases, finished, outputs)
 
 
-def _sim_result(cols: dict, phases: list[str], finished: bool, outputs: list) -> SimResult:
+def _record_tick(cols: dict[str, list[float]], t_s: float, x_m: float, y_m: float, course_rad: float,
+                 out: GuidanceOutput) -> None:
+    """Append one tick's state and command to the columns (``a_ach`` is appended by the caller)."""
+    for key, value in (("t", t_s), ("x", x_m), ("y", y_m), ("course", course_rad), ("a", out.a_cmd_m_s2),
+                       ("d", out.crosstrack_m), ("k1", out.k1), ("k2", out.k2)):
+        cols[key].append(value)
+
+
+def _sim_result(cols: dict[str, list[float]], phases: list[str], finished: bool,
+                outputs: list[GuidanceOutput]) -> SimResult:
     """The recorded per-tick columns as a :class:`SimResult`, with its tracking metrics."""
     arr = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
     result = SimResult(arr["t"], arr["x"], arr["y"], arr["course"], arr["a"], arr["a_ach"],

@@ -82,7 +82,7 @@ def test_far_start_flies_the_midcourse_phase_first_then_the_predictive_law():
 @pytest.mark.parametrize("field, value", [("lambda_s4", -1.0), ("lambda_s4", math.inf),
                                           ("a_max_m_s2", 0.0), ("a_max_m_s2", math.nan),
                                           ("wind_x_m_s", math.inf), ("rollout_tau_s", -0.1),
-                                          ("method", "pure_pursuit")])
+                                          ("method", "mpc")])
 def test_guidance_params_refuse_bad_predictive_values(field, value):
     with pytest.raises(ValueError, match=field):
         GuidanceParams(**{field: value})

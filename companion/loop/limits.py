@@ -1,0 +1,100 @@
+"""The acceleration limit the autopilot's own parameters put on its velocity controller, read at start-up.
+
+Which parameter bounds the horizontal acceleration of the velocity controller that flies our
+velocity + yaw-rate setpoints (found in the firmware sources):
+
+- **ArduCopter, GUIDED** (velocity / velocity-acceleration sub-mode): ``ModeGuided::pva_control_start``
+  (``ArduCopter/mode_guided.cpp``) sets the position controller's horizontal limits with
+  ``pos_control->set_max_speed_accel_NE_cm(..., wp_nav->get_wp_acceleration_cmss())``, i.e.
+  ``WPNAV_ACCEL`` in cm/s^2 (``AC_WPNav``; 0 or less falls back to 250 cm/s^2). The identified
+  2.43 m/s^2 of the default build (docs/vehicle_model.md) is this 250 cm/s^2.
+- **PX4, OFFBOARD** (velocity setpoints): the setpoint goes straight to ``PositionControl``, whose
+  velocity PID asks for an acceleration limited only by the tilt limit ``MPC_TILTMAX_AIR``
+  (degrees; ``ControlMath::limitTilt``): ``a <= g tan(MPC_TILTMAX_AIR)``, 9.8 m/s^2 at the
+  default 45 deg. ``MPC_ACC_HOR`` / ``MPC_ACC_HOR_MAX`` bound the smoothed auto and position
+  modes (``GotoControl``, the manual position mode), not offboard velocity setpoints. The PX4 SIH
+  quadrotor flies about 4.5 m/s^2 at 5 m/s: its PID response, not a parameter, sets that.
+
+The limit read is used by the guidance (``guidance.a_max_m_s2``: the law never plans or commands
+beyond it; only ``predictive`` plans with it) unless the mission says otherwise: a ``vehicle:``
+block wins outright, a lower ``guidance.a_max_m_s2`` is kept. The flight's log says which.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+from companion.mission.model import Mission
+
+G_M_S2 = 9.80665
+#: The parameters read per autopilot (``AutopilotInfo.kind``).
+LIMIT_PARAMS = {"ardupilot": ("WPNAV_ACCEL",), "px4": ("MPC_TILTMAX_AIR",)}
+WPNAV_ACCEL_DEFAULT_CM_S2 = 250.0  # AC_WPNav: used when WPNAV_ACCEL <= 0
+READ_TIMEOUT_S = 2.0
+
+
+@dataclass(frozen=True)
+class AutopilotLimit:
+    """A horizontal acceleration limit and the parameter it comes from (for the log)."""
+
+    a_max_m_s2: float
+    source: str
+
+
+def limit_from_params(values: dict[str, float]) -> AutopilotLimit | None:
+    """The limit the parameter values imply (None: none of :data:`LIMIT_PARAMS` among them). The
+    names tell the autopilot apart, so a replay finds the same limit in the log's PARAM_VALUEs.
+
+    >>> limit_from_params({"WPNAV_ACCEL": 250.0})
+    AutopilotLimit(a_max_m_s2=2.5, source='WPNAV_ACCEL 250 cm/s^2')
+    >>> round(limit_from_params({"MPC_TILTMAX_AIR": 45.0}).a_max_m_s2, 4)
+    9.8066
+    """
+    if "WPNAV_ACCEL" in values:
+        cm_s2 = values["WPNAV_ACCEL"]
+        if cm_s2 <= 0:
+            return AutopilotLimit(WPNAV_ACCEL_DEFAULT_CM_S2 / 100.0,
+                                  f"WPNAV_ACCEL {cm_s2:g} (<= 0: the firmware's {WPNAV_ACCEL_DEFAULT_CM_S2:g} cm/s^2)")
+        return AutopilotLimit(cm_s2 / 100.0, f"WPNAV_ACCEL {cm_s2:g} cm/s^2")
+    if "MPC_TILTMAX_AIR" in values:
+        tilt_deg = values["MPC_TILTMAX_AIR"]
+        if 0 < tilt_deg < 90:
+            return AutopilotLimit(G_M_S2 * math.tan(math.radians(tilt_deg)),
+                                  f"MPC_TILTMAX_AIR {tilt_deg:g} deg (g tan(tilt))")
+    return None
+
+
+def mission_with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[Mission, str]:
+    """The mission whose guidance flies within ``limit`` unless it says otherwise, and the log line."""
+    g = mission.guidance
+    if mission.vehicle is not None:
+        read = f" (the autopilot's {limit.source} not used)" if limit is not None else ""
+        return mission, (f"acceleration limit {mission.vehicle.a_max_m_s2:g} m/s^2 from the mission's "
+                         f"vehicle: block{read}")
+    if limit is None:
+        own = "none" if math.isinf(g.a_max_m_s2) else f"{g.a_max_m_s2:g} m/s^2"
+        return mission, f"acceleration limit: not read from the autopilot; the mission's ({own})"
+    if g.a_max_m_s2 <= limit.a_max_m_s2:
+        return mission, (f"acceleration limit {g.a_max_m_s2:g} m/s^2 from the mission's guidance.a_max_m_s2 "
+                         f"(the autopilot's {limit.source} = {limit.a_max_m_s2:.3g} m/s^2 is higher)")
+    guidance = dataclasses.replace(g, a_max_m_s2=limit.a_max_m_s2)
+    return dataclasses.replace(mission, guidance=guidance), (
+        f"acceleration limit {limit.a_max_m_s2:.3g} m/s^2 from the autopilot's {limit.source}")
+
+
+def apply_autopilot_limits(link, mission: Mission, event: Callable[[str], None],
+                           idle: Callable[[], None] | None = None) -> Mission:
+    """Read the copter autopilot's limit parameters over ``link`` (PARAM_REQUEST_READ; the
+    answers land in the flight's tlog, where replay finds them), log which limit the flight uses,
+    and return the mission to fly (its guidance within that limit). Other vehicles: unchanged."""
+    info = link.info
+    names = LIMIT_PARAMS.get(info.autopilot, ()) if info is not None and info.vehicle == "copter" else ()
+    if not names:
+        return mission
+    values = link.read_params(names, READ_TIMEOUT_S, idle=idle)
+    mission, line = mission_with_limit(mission, limit_from_params(values))
+    event(line)
+    return mission
