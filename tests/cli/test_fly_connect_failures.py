@@ -10,20 +10,13 @@ from pathlib import Path
 import pytest
 
 from companion.cli.main import main
+from companion.io.mock_process import free_udp_port
 
 MISSION = str(Path(__file__).resolve().parents[2] / "missions" / "paper_sine.yaml")
 
 
 def closed_tcp_port() -> int:
     s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))
     port = s.getsockname()[1]
     s.close()
