@@ -246,9 +246,10 @@ def test_px4_ground_start_offboard_then_arm_then_climb_before_the_path(free_udp_
     t_offboard = next(t for t, m in peer.commands if m.command == 176 and int(m.param2) == 6)
     t_arm = next(t for t, m in peer.commands if m.command == 400)
     assert peer.setpoints[0][0] + 0.95 <= t_offboard < t_arm
-    # the setpoint stream never paused while arming and climbing (PX4 would leave OFFBOARD)
+    # the setpoint stream never paused while arming and climbing: PX4 keeps OFFBOARD only while
+    # setpoints flow at more than 2 Hz (no gap of 0.5 s); the loop sends them at 50 Hz
     times = [t for t, _ in peer.setpoints if t_offboard <= t]
-    assert max(b - a for a, b in zip(times, times[1:])) < 0.3
+    assert max(b - a for a, b in zip(times, times[1:])) < 0.5
     # the path starts only at 90 % of the mission altitude (10 m), reached by climbing with vz
     assert any(m.vz < 0 for _, m in peer.setpoints)
     debug = [m for m in tlog_messages(tmp_path / "f.tlog") if m.get_type() == "DEBUG_FLOAT_ARRAY"]
