@@ -123,8 +123,13 @@ class FlyOptions:
             raise CompanionError(f"--max-bank-deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
 
 
-class _Terminate(Exception):
-    """SIGTERM, turned into an exception so that every ``finally`` runs (tlog closed)."""
+class _Terminate(BaseException):
+    """SIGTERM, turned into an exception so that every ``finally`` runs (tlog closed).
+
+    A ``BaseException``, like ``KeyboardInterrupt``: the handler raises it wherever the main thread
+    happens to be, and the link's parser guards (``except Exception``: a malformed packet must not
+    stop the loop) would otherwise swallow it and the flight would go on.
+    """
 
 
 def distance_to_path_m(path, x_m: float, y_m: float, n: int = 4000) -> float:

@@ -340,3 +340,21 @@ def test_land_is_not_a_plane_mode(port):
     with pytest.raises(LinkError, match="not available on an ArduPilot plane"):
         link.mode_number("land")
     link.close(); ap.close()
+
+
+def test_an_interrupt_inside_the_parser_is_not_swallowed_as_bad_data(port):
+    # SIGTERM (the runner's _Terminate) and Ctrl-C arrive wherever the main thread is, most often
+    # inside the parser, whose guards count and drop malformed packets. They must pass through.
+    from companion.loop.runner import _Terminate
+
+    link = MavLink(f"udpin:127.0.0.1:{port}")
+    try:
+        def interrupted(data):
+            raise _Terminate()
+
+        link._mav.parse_buffer = interrupted
+        with pytest.raises(_Terminate):
+            link._handle_bytes(b"\xfd\x09", ("127.0.0.1", 1))
+        assert link.rejected["bad_data"] == 0
+    finally:
+        link.close()
