@@ -16,8 +16,6 @@ from pathlib import Path
 
 from companion.errors import CompanionError, LogError
 from companion.guidance.types import VEHICLE_MODEL_KEYS
-from companion.io.idlog import read_identification_samples
-from companion.sim.identify import IdentifyError, identify
 
 _DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "speed_sag_s": 3,
              "yaw_rate_max_deg_s": 1}
@@ -51,6 +49,11 @@ def vehicle_block_text(model, unidentified: dict, source: str) -> str:
 
 
 def run(args) -> int:
+    # Imported here, not at the top: every subcommand module is imported to register it, and the
+    # fit's scipy.signal and scipy.optimize must not weigh on ``companion fly``.
+    from companion.io.idlog import read_identification_samples
+    from companion.sim.identify import IdentifyError, identify
+
     path = Path(args.tlog)
     if not path.is_file():
         raise LogError(f"{path}: no such file")

@@ -41,7 +41,6 @@ from typing import Callable, Union
 
 import numpy as np
 import numpy.typing as npt
-from scipy.ndimage import maximum_filter1d
 
 from companion.geometry.checks import require_positive_finite
 
@@ -297,6 +296,8 @@ def altitude_table(s_grid: np.ndarray, target_m: np.ndarray, speed_m_s: np.ndarr
         # climb_max / V(s) (every slope in the window is). The window may grow; repeat.
         for _ in range(4):
             size = 2 * half + 1
+            from scipy.ndimage import maximum_filter1d  # here: the flight's imports stay light
+
             v_near = maximum_filter1d(v, size=min(size, 4 * v.size + 1), mode="wrap" if closed else "nearest")
             limited = rate_limited(target, climb / v_near * ds, sink / v_near * ds, closed)
             new_half = _half_window(limited, ds, v_max, limits)
