@@ -110,6 +110,11 @@ class SimResult:
     a_sat_m_s2: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the command after the limit
 
 
+#: The per-tick columns ``simulate`` records (``a``: the raw command, ``a_sat``: after the limit,
+#: ``a_ach``: flown).
+_COLUMNS = ("t", "x", "y", "course", "a", "a_sat", "a_ach", "d", "k1", "k2")
+
+
 def unicycle_step(x_m: float, y_m: float, heading_rad: float, speed_m_s: float,
                   a_m_s2: float, dt_s: float) -> tuple[float, float, float]:
     """Exact step of eq. 1 for a constant lateral acceleration over ``dt_s`` (a circular arc)."""
@@ -168,8 +173,7 @@ def simulate(path: Path, law: GuidanceLaw, start: VehicleState, params: Guidance
     pending = [0.0] * delay_ticks  # commands issued but not yet acting (dead time), oldest first
     x, y, psi = start.x_m, start.y_m, start.course_rad
     a_ach = 0.0
-    cols: dict[str, list[float]] = {k: [] for k in ("t", "x", "y", "course", "a", "a_sat", "a_ach", "d",
-                                                "k1", "k2")}
+    cols: dict[str, list[float]] = {k: [] for k in _COLUMNS}
     phases: list[str] = []
     outputs = []
     finished = False
@@ -191,8 +195,7 @@ def simulate(path: Path, law: GuidanceLaw, start: VehicleState, params: Guidance
             outputs.append(out)
         # Inner loop: dead time, saturation, first-order lag (exact over the tick); the flown
         # acceleration is its mean over the tick.
-        a_sat = max(-a_lim, min(a_lim, a_cmd))
-        target = a_sat
+        target = a_sat = max(-a_lim, min(a_lim, a_cmd))
         if delay_ticks:
             pending.append(a_sat)
             target = pending.pop(0)
