@@ -125,9 +125,9 @@ def test_the_issue_case_returns_in_the_lag_model_too(method):
 
 
 def test_start_distance_of_the_issue_case_by_hand():
-    # y(-15) = 10 sin(-1.17) + 20 cos(-1.23) = -9.2072 + 6.7040; the sine rises from there, so
+    # y(-15) = 10 sin(-1.17) + 20 cos(-1.23) = -9.20751 + 6.68475; the sine rises from there, so
     # the closest point to (-15, -18) is the path start.
-    assert SCENES["paper_sine"][5] == pytest.approx(18.0 - 9.20725 + 6.70437, abs=1e-4)
+    assert SCENES["paper_sine"][5] == pytest.approx(18.0 - 9.20751 + 6.68475, abs=1e-4)
     d = _sine_distance(np.array([-15.0]), np.array([-18.0]))
     assert d[0] == pytest.approx(SCENES["paper_sine"][5], abs=1e-6)
 
