@@ -77,7 +77,8 @@ def fly(path, method: str, heading_deg: float, rate_hz: float = RATE_HZ) -> dict
     start = VehicleState(START_XY_M[0], START_XY_M[1], math.radians(heading_deg), SPEED_M_S)
     result = simulate(path, TwoPhaseGuidance(path, params), start, params)
     m = {k: v for k, v in result.metrics.items() if k != "phases"}
-    m["a_max_left_m_s2"] = float(np.max(result.a_cmd_m_s2)) if result.a_cmd_m_s2.size else math.nan
+    flown = result.a_achieved_m_s2  # the ideal model flies the command exactly
+    m["a_max_left_m_s2"] = float(np.max(flown)) if flown.size else math.nan
     m["finished"] = result.finished
     return m
 

@@ -263,7 +263,7 @@ def run_one(task: tuple) -> dict:
                    reach_s=math.nan)
     else:
         i0 = int(reached[0])
-        m = tracking_metrics(res.t_s[i0:], d[i0:], res.a_cmd_m_s2[i0:])
+        m = tracking_metrics(res.t_s[i0:], d[i0:], res.a_achieved_m_s2[i0:])  # what the vehicle flew
         row.update(d_rms_m=m["d_rms_m"], d_max_m=m["d_max_m"], a_rms_m_s2=m["a_rms_m_s2"],
                    a_max_m_s2=m["a_max_m_s2"], reach_s=float(res.t_s[i0]))
     row["duration_s"] = float(res.t_s[-1]) if res.t_s.size else 0.0

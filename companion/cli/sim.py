@@ -186,5 +186,5 @@ def _plot(out_path: str, mission, path, result) -> None:
 
     fig = flight_figure(path, result.t_s, result.x_m, result.y_m, result.crosstrack_m,
                         result.a_cmd_m_s2, list(result.phase), f"{mission.name}: offline simulation",
-                        track_label="simulated track")
+                        track_label="simulated track", a_compare=("a flown", result.a_achieved_m_s2))
     save_figure(fig, out_path)

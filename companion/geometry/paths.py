@@ -29,7 +29,16 @@ Projection and look-ahead
 ``project(x, y, s_hint)`` returns the arc length of the closest point. With a hint (the previous
 projection) it only searches a window around the hint, sized by how far the vehicle is from the
 hinted point, so a path that comes back near itself (a racetrack, a hairpin) never makes the
-projection jump to the other branch. Without a hint it searches the whole path.
+projection jump to the other branch. Without a hint (the first projection of a flight):
+
+- a closed path is searched whole (the global closest point);
+- an open path is followed from its start: walking from ``s = 0`` forward, the result is the
+  first local minimum of the distance that is about as near as the nearest point, i.e. within
+  the same window a hint allows (``2 d_min + 2 m``, ``d_min`` the distance to the closest
+  point). On a path that crosses itself, a vehicle near the crossing joins the branch flown
+  first, not the later one; a branch much farther than the nearest is passed over, so a vehicle
+  on the path far along a meandering open path is not sent back to an earlier meander
+  (docs/frames.md, "Projection").
 
 ``lookahead(x, y, l1_m, s_from)`` returns the first arc length forward of ``s_from`` where the
 path leaves the circle of radius L1 around the vehicle (the Park 2007 reference point), or
@@ -274,7 +283,10 @@ class Path:
         x_m, y_m : the query point (local ENU).
         s_hint : the previous projection, if any. With a hint only arc lengths within
             ``2 * |q - point(s_hint)| + 2 m`` of the hint are searched, so the result stays on the
-            hinted branch of a path that comes back near itself. Without a hint the search is global.
+            hinted branch of a path that comes back near itself. Without a hint the search is
+            global on a closed path; on an open path it is the first local minimum of the
+            distance from ``s = 0`` forward within ``2 d_min + 2 m`` (open paths are followed
+            from their start).
 
         Returns
         -------
@@ -282,6 +294,8 @@ class Path:
         """
         n = self._n
         if s_hint is None:
+            if not self.closed:
+                return self._refine_projection(x_m, y_m, self._first_local_minimum(x_m, y_m))
             lo, hi = 0, n
         else:
             # The hinted point is also Newton's first frame: evaluate it once.
@@ -308,6 +322,22 @@ class Path:
             dy = self.y_table_m[lo:hi + 1] - y_m
             j = lo + int(np.argmin(dx * dx + dy * dy))
         return self._refine_projection(x_m, y_m, j)
+
+    def _first_local_minimum(self, x_m: float, y_m: float) -> int:
+        """The first table node, from ``s = 0`` forward, where the distance to ``(x_m, y_m)`` has
+        a local minimum no larger than the hint window of the nearest one allows
+        (``PROJECT_WINDOW_FACTOR * d_min + PROJECT_WINDOW_MIN_M``): the first branch that passes
+        about as near as the nearest (module docstring, "Projection and look-ahead")."""
+        dx = self.x_table_m - x_m
+        dy = self.y_table_m - y_m
+        d2 = dx * dx + dy * dy
+        d_near = PROJECT_WINDOW_FACTOR * math.sqrt(float(np.min(d2))) + PROJECT_WINDOW_MIN_M
+        # A local minimum: strictly below the node before (the first of a plateau, as argmin),
+        # not above the node after; the path's ends count when the distance rises from them.
+        falls = np.concatenate(([True], d2[1:] < d2[:-1]))
+        stops = np.concatenate((d2[:-1] <= d2[1:], [True]))
+        found = np.flatnonzero(falls & stops & (d2 <= d_near * d_near))
+        return int(found[0])
 
     def _newton_projection(self, x_m: float, y_m: float, s_hint: float, window_m: float,
                            first: PathFrame | None = None) -> float | None:

@@ -226,6 +226,11 @@ class MidcourseGuidance:
     plan's arc turns less than that limit. The same happens when the arc would be tighter than
     the initiation circle itself (``|c| > 1 / R``: a start close to the circle, heading the wrong
     way); R being the feasible turn radius, the approach command never exceeds ``V^2 / R``.
+    The caller may hold the turn-in for a tick (``keep_turning_in``): the two-phase guidance does
+    while the closest point of the *path* lies behind the vehicle (our addition, docs/guidance.md,
+    "Capture far from the path": from a start beside the path far from its start, heading away,
+    lemma 1's arc to the start can bulge 100 m out; turning in first until the path is abeam
+    keeps the vehicle near it).
 
     ``step`` returns ``(a_cmd_m_s2, stage, done)``; ``stage`` is ``"turn_in"``, ``"approach"``
     or ``"circle"`` and ``done`` turns True on the tick the vehicle passes the path start on the
@@ -261,7 +266,9 @@ class MidcourseGuidance:
         return (c.sense * (c.angle_rad(sx, sy) - c.angle_rad(x_m, y_m))) % TWO_PI
 
     def step(self, t_s: float, x_m: float, y_m: float, course_rad: float,
-             speed_m_s: float) -> tuple[float, str, bool]:
+             speed_m_s: float, keep_turning_in: bool = False) -> tuple[float, str, bool]:
+        """One tick; ``keep_turning_in`` holds the turn-in stage this tick whatever the plan (the
+        caller's rule: the closest path point lies behind the vehicle, see the class docstring)."""
         dt = 0.0 if self._t_prev is None else max(t_s - self._t_prev, 0.0)
         self._t_prev = t_s
         if self.stage == "turn_in":
@@ -271,7 +278,7 @@ class MidcourseGuidance:
                 self.first_plan = plan
             self.plan = plan
             feasible = abs(plan.chosen.curvature_1_m) * self.radius_m <= 1.0 + 1e-9
-            if plan.chosen.turn_rad <= self.TURN_IN_LIMIT_RAD and feasible:
+            if plan.chosen.turn_rad <= self.TURN_IN_LIMIT_RAD and feasible and not keep_turning_in:
                 self.stage = "approach"
                 self._flown_m = 0.0
                 dt = 0.0

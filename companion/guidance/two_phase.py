@@ -21,6 +21,8 @@ Phases
     - ``"off"``: never.
 
     See :mod:`companion.guidance.midcourse` for the circles, the contact point and the switch.
+    Our addition: the turn-in is held while the closest path point lies behind the beam (a start
+    beside the path, far from its start, heading away: :mod:`companion.guidance.capture`).
 ``close_range``
     Constant L1 (``method="fixed_l1"``), the corrector-aided command with online gains
     (``method="corrector"``), or the predictive law (``method="predictive"``: this phase is
@@ -31,8 +33,10 @@ Phases
     ``a_hat_m_s2``; ``reoptimised`` marks its re-optimisation ticks, every 0.2 s). For the first
     two: When no path point ahead leaves the L1 circle (the vehicle is more
     than L1 from the path, or a closed path lies wholly inside the circle) it steers at its
-    projection with Park's command ``2 V^2 sin(eta) / max(|d|, L1)``, so that
-    ``|a| <= 2 V^2 / L1`` holds in every case.
+    projection with Park's command ``2 V^2 sin(eta) / max(|d|, L1)``, and, while the projection
+    lies behind the beam, turns towards it at ``2 V^2 / L1`` (the capture,
+    :mod:`companion.guidance.capture`, our addition to the paper), so that
+    ``|a| <= 2 V^2 / L1`` holds in every case and a vehicle pointing away comes back.
 ``finished``
     On an open path, when the look-ahead point would run past the path end (the end is within
     L1 of the vehicle and no point ahead leaves the L1 circle): the paper's "while the
@@ -46,6 +50,7 @@ from __future__ import annotations
 import math
 
 from companion.geometry.paths import Path
+from companion.guidance.capture import capture_command_m_s2, capture_side
 from companion.guidance.corrector import corrector_command
 from companion.guidance.l1 import l1_command
 from companion.guidance.midcourse import MidcourseGuidance, MidcoursePlan
@@ -94,6 +99,8 @@ class TwoPhaseGuidance:
         self._finished = False
         self._s_proj: float | None = None
         self._s_look: float | None = None
+        self._capture_side = 0  # the side of the bounded capture turn (companion.guidance.capture)
+        self._s_turn_in: float | None = None  # projection during the mid-course turn-in
         self._k1 = 1.0 if params.method == "fixed_l1" else params.k1_max
         self._k2 = 0.0
         self._t_next_opt = -math.inf
@@ -143,7 +150,8 @@ class TwoPhaseGuidance:
     def _midcourse_step(self, t_s: float, state: VehicleState) -> GuidanceOutput | None:
         mc = self._midcourse
         assert mc is not None  # step() calls this only in the mid-course phase
-        a, stage, done = mc.step(t_s, state.x_m, state.y_m, state.course_rad, state.speed_m_s)
+        a, stage, done = mc.step(t_s, state.x_m, state.y_m, state.course_rad, state.speed_m_s,
+                                 mc.stage == "turn_in" and self._path_behind(state))
         if done:
             mc.stage = "done"
             self._s_proj = 0.0  # close range starts at the path start
@@ -162,6 +170,14 @@ class TwoPhaseGuidance:
                    "rule": plan.rule, "contact_xy_m": plan.chosen.contact_xy_m},
         )
 
+    def _path_behind(self, state: VehicleState) -> bool:
+        """Whether the closest path point lies behind the beam (the mid-course turn-in is then
+        held: :mod:`companion.guidance.capture`); the projection is carried tick to tick."""
+        s = self.path.project(state.x_m, state.y_m, self._s_turn_in)
+        self._s_turn_in = s
+        px, py, tx, ty, _ = self.path.frame(s)
+        return capture_side(state.x_m, state.y_m, state.course_rad, px, py, tx, ty, 0) != 0
+
     def _close_range_step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         if self._predictive is not None:
             return self._predictive_step(t_s, state)
@@ -179,15 +195,21 @@ class TwoPhaseGuidance:
             if not path.closed and math.hypot(x - ex, y - ey) <= p.l1_m:
                 self._finished = True
                 return self._finished_output(state, s_proj, crosstrack)
-            # Farther than L1 from the path: steer at the projection. (A closed path lying wholly
+            # Farther than L1 from the path: steer at the projection, with a bounded turn while
+            # it lies behind the beam (companion.guidance.capture). (A closed path lying wholly
             # inside the L1 circle has no look-ahead point either: there the projection is nearer
             # than L1 and Park's distance is held at L1 to keep |a| <= 2 V^2 / L1.)
-            a, _, d = l1_command(x, y, course, V, px, py)
-            if d < p.l1_m:
-                a *= d / p.l1_m
+            self._capture_side = capture_side(x, y, course, px, py, tx, ty, self._capture_side)
+            if self._capture_side:
+                a = capture_command_m_s2(self._capture_side, V, p.l1_m)
+            else:
+                a, _, d = l1_command(x, y, course, V, px, py)
+                if d < p.l1_m:
+                    a *= d / p.l1_m
             return GuidanceOutput(a_cmd_m_s2=a, phase="close_range", crosstrack_m=crosstrack,
-                                  s_proj_m=s_proj, k1=self._k1, k2=self._k2,
-                                  lookahead_xy_m=(px, py), extra={"no_lookahead": True})
+                                  s_proj_m=s_proj, k1=self._k1, k2=self._k2, lookahead_xy_m=(px, py),
+                                  extra={"no_lookahead": True, "capture_side": self._capture_side})
+        self._capture_side = 0
         self._s_look = s_look
         lx, ly, ltx, lty, lk = path.frame(s_look)
         if p.method == "fixed_l1":

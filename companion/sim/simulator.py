@@ -23,6 +23,24 @@ Models
   mean of the achieved acceleration over it), plus a constant wind.
   :meth:`LagModel.from_vehicle` builds it from a mission's ``vehicle:`` block.
 
+Accounting (the same for every law)
+-----------------------------------
+The vehicle's limits act on every law's command before it is flown, whether the law clips its
+own command or not. Three columns, one entry per tick ``i`` (time ``t_i``):
+
+- ``a_cmd_m_s2``: the law's raw command issued at ``t_i``;
+- ``a_sat_m_s2``: that command saturated at the vehicle's limit (``a_max_m_s2``), i.e. what the
+  vehicle accepts; it acts ``delay_s`` later;
+- ``a_achieved_m_s2``: the lateral acceleration the vehicle *flies* over the tick
+  ``[t_i, t_i + dt]``: after dead time, saturation and lag, averaged over the tick. This is the
+  turn rate ``a / V`` that moves the vehicle in the step, so it is what was flown. (The value in
+  force at the start of the tick would lag the command by one tick in the ideal model, where the
+  command is flown from ``t_i`` on; the tick mean equals the command there exactly.)
+
+``metrics`` (``a_rms_m_s2``, ``a_max_m_s2``) measure ``a_achieved_m_s2``; in the ideal model it
+equals ``a_cmd_m_s2`` to the bit, and in the lag model ``|a_achieved| <= a_max_m_s2`` for every
+law.
+
 End of a run: the law reports ``finished`` (for :class:`TwoPhaseGuidance` on an open path, the
 look-ahead point reaching the path end), or ``t_max_s`` elapses (default: the time to fly three
 times the path length plus the distance to its start, at V).
@@ -80,8 +98,8 @@ class SimResult:
     x_m: np.ndarray
     y_m: np.ndarray
     course_rad: np.ndarray
-    a_cmd_m_s2: np.ndarray
-    a_achieved_m_s2: np.ndarray
+    a_cmd_m_s2: np.ndarray  # the law's raw command
+    a_achieved_m_s2: np.ndarray  # flown: mean over the tick after dead time, saturation and lag
     crosstrack_m: np.ndarray
     phase: list[str]
     k1: np.ndarray
@@ -89,6 +107,12 @@ class SimResult:
     finished: bool
     metrics: dict[str, Any] = field(default_factory=dict)
     outputs: list[GuidanceOutput] = field(default_factory=list)  # the GuidanceOutput of every tick
+    a_sat_m_s2: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the command after the limit
+
+
+#: The per-tick columns ``simulate`` records (``a``: the raw command, ``a_sat``: after the limit,
+#: ``a_ach``: flown).
+_COLUMNS = ("t", "x", "y", "course", "a", "a_sat", "a_ach", "d", "k1", "k2")
 
 
 def unicycle_step(x_m: float, y_m: float, heading_rad: float, speed_m_s: float,
@@ -132,6 +156,8 @@ def simulate(path: Path, law: GuidanceLaw, start: VehicleState, params: Guidance
     Returns
     -------
     SimResult. The ``finished`` tick itself is not recorded (its command is 0 by definition).
+    Its ``metrics`` measure the flown acceleration ``a_achieved_m_s2`` (module docstring,
+    "Accounting").
     """
     if t_max_s is None:
         t_max_s = default_t_max_s(path, start)
@@ -147,7 +173,7 @@ def simulate(path: Path, law: GuidanceLaw, start: VehicleState, params: Guidance
     pending = [0.0] * delay_ticks  # commands issued but not yet acting (dead time), oldest first
     x, y, psi = start.x_m, start.y_m, start.course_rad
     a_ach = 0.0
-    cols: dict[str, list[float]] = {k: [] for k in ("t", "x", "y", "course", "a", "a_ach", "d", "k1", "k2")}
+    cols: dict[str, list[float]] = {k: [] for k in _COLUMNS}
     phases: list[str] = []
     outputs = []
     finished = False
@@ -167,21 +193,21 @@ def simulate(path: Path, law: GuidanceLaw, start: VehicleState, params: Guidance
         phases.append(out.phase)
         if keep_outputs:
             outputs.append(out)
-        if i == n_max:
-            cols["a_ach"].append(a_ach)
-            break
-        # Inner loop: saturate, then first-order lag (exact over the tick); mean over the tick.
-        acting = a_cmd
+        # Inner loop: dead time, saturation, first-order lag (exact over the tick); the flown
+        # acceleration is its mean over the tick.
+        target = a_sat = max(-a_lim, min(a_lim, a_cmd))
         if delay_ticks:
-            pending.append(a_cmd)
-            acting = pending.pop(0)
-        target = max(-a_lim, min(a_lim, acting))
+            pending.append(a_sat)
+            target = pending.pop(0)
         if tau > 0:
             a_next = target + (a_ach - target) * lag
             a_mean = target + (a_ach - target) * tau / dt * (1.0 - lag)
         else:
             a_next = a_mean = target
-        cols["a_ach"].append(a_ach)
+        cols["a_sat"].append(a_sat)
+        cols["a_ach"].append(a_mean)
+        if i == n_max:
+            break
         if profile is not None:
             V = profile.speed_m_s(out.s_proj_m)
         x, y, psi = unicycle_step(x, y, psi, V, a_mean, dt)
@@ -193,7 +219,8 @@ def simulate(path: Path, law: GuidanceLaw, start: VehicleState, params: Guidance
 
 def _record_tick(cols: dict[str, list[float]], t_s: float, x_m: float, y_m: float, course_rad: float,
                  out: GuidanceOutput) -> None:
-    """Append one tick's state and command to the columns (``a_ach`` is appended by the caller)."""
+    """Append one tick's state and command to the columns (``a_sat`` and ``a_ach`` are appended by
+    the caller)."""
     for key, value in (("t", t_s), ("x", x_m), ("y", y_m), ("course", course_rad), ("a", out.a_cmd_m_s2),
                        ("d", out.crosstrack_m), ("k1", out.k1), ("k2", out.k2)):
         cols[key].append(value)
@@ -204,6 +231,7 @@ def _sim_result(cols: dict[str, list[float]], phases: list[str], finished: bool,
     """The recorded per-tick columns as a :class:`SimResult`, with its tracking metrics."""
     arr = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
     result = SimResult(arr["t"], arr["x"], arr["y"], arr["course"], arr["a"], arr["a_ach"],
-                       arr["d"], phases, arr["k1"], arr["k2"], finished, outputs=outputs)
-    result.metrics = tracking_metrics(arr["t"], arr["d"], arr["a"], phases)
+                       arr["d"], phases, arr["k1"], arr["k2"], finished, outputs=outputs,
+                       a_sat_m_s2=arr["a_sat"])
+    result.metrics = tracking_metrics(arr["t"], arr["d"], arr["a_ach"], phases)  # what was flown
     return result

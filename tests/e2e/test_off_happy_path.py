@@ -32,6 +32,7 @@ from pymavlink import mavutil
 
 from companion.cli.main import main
 from companion.errors import FlightUnhealthy
+from companion.guidance.l1 import l1_command
 from companion.io.mock_process import MockProcess, free_udp_port, mock_start_args
 from companion.loop.runner import FlightRunner, FlyOptions, Status, make_guidance
 from companion.mission import load_mission, parse_mission
@@ -81,14 +82,23 @@ def start_mock(args):
 
 
 class ReversedLaw:
-    """The mission's law with the sign of its lateral acceleration reversed: a runaway."""
+    """The mission's law with the sign of its lateral acceleration reversed: a runaway.
+
+    Where the law's capture turn acts (companion.guidance.capture: no look-ahead point, the
+    path behind), the command reversed is the law's command without it, Park's command towards
+    the closest point (reversed, the bounded capture turn would make the vehicle circle)."""
 
     def __init__(self, inner):
         self.inner = inner
 
     def step(self, t_s, state):
         out = self.inner.step(t_s, state)
-        return dataclasses.replace(out, a_cmd_m_s2=-out.a_cmd_m_s2)
+        a = out.a_cmd_m_s2
+        if out.extra.get("capture_side"):
+            px, py = out.lookahead_xy_m  # the closest point
+            a, _, d = l1_command(state.x_m, state.y_m, state.course_rad, state.speed_m_s, px, py)
+            a *= min(1.0, d / self.inner.params.l1_m)
+        return dataclasses.replace(out, a_cmd_m_s2=-a)
 
 
 def fly_runner(mission, port, tmp_path, guidance=None, **kw):

@@ -115,8 +115,34 @@ def test_projection_with_a_hint_stays_on_its_branch_of_a_hairpin():
     assert hairpin.point(s_out)[1] == pytest.approx(0.0, abs=0.05)
     s_hinted = hairpin.project(20.0, 2.3, s_hint=s_out)
     assert hairpin.point(s_hinted)[1] == pytest.approx(0.0, abs=0.05)
-    s_global = hairpin.project(20.0, 2.3)
-    assert hairpin.point(s_global)[1] == pytest.approx(4.0, abs=0.05)
+    # Without a hint an open path is followed from its start: the first leg, although the
+    # return leg is nearer (1.7 m against 2.3 m).
+    s_first = hairpin.project(20.0, 2.3)
+    assert hairpin.point(s_first) == pytest.approx((20.0, 0.0), abs=0.05)
+
+
+def test_first_projection_of_an_open_path_is_the_first_local_minimum_from_its_start():
+    # A U: out along y = 0 to x = 100, a half circle of radius 5, back along y = 10. Without a
+    # hint the distance from s = 0 falls to the foot on the first leg, then rises: that foot,
+    # when it is within 2 d_min + 2 m of the nearest point's distance d_min.
+    out = [(x, 0.0) for x in np.linspace(0.0, 100.0, 21)]
+    turn = [(100.0 + 5.0 * math.sin(a), 5.0 - 5.0 * math.cos(a)) for a in np.linspace(0.2, math.pi - 0.2, 7)]
+    back = [(x, 10.0) for x in np.linspace(100.0, 0.0, 21)]
+    u = waypoint_path(out + turn + back)
+    s = u.project(50.0, 6.0)  # 6 m from the first leg, 4 m from the return leg: 6 <= 2 * 4 + 2
+    assert s == pytest.approx(50.0, abs=1e-6)
+    assert u.point(s) == pytest.approx((50.0, 0.0), abs=1e-6)
+    # 8.5 m from the first leg, 1.5 m from the return leg: 8.5 > 2 * 1.5 + 2, the return leg.
+    assert u.point(u.project(50.0, 8.5)) == pytest.approx((50.0, 10.0), abs=1e-6)
+    # Behind the start, the distance only rises: s = 0.
+    assert u.project(-20.0, 3.0) == 0.0
+    # With a hint on the return leg, the return leg.
+    assert u.point(u.project(50.0, 6.0, s_hint=u.length_m - 50.0))[1] == pytest.approx(10.0, abs=1e-6)
+    # A closed path keeps the global search: the same U closed by its left end.
+    loop = waypoint_path(out[:-1] + turn + back[:-1] + [(-5.0 * math.sin(a), 5.0 + 5.0 * math.cos(a))
+                                                          for a in np.linspace(0.2, math.pi - 0.2, 7)],
+                         closed=True)
+    assert loop.point(loop.project(50.0, 6.0))[1] == pytest.approx(10.0, abs=0.05)
 
 
 def test_waypoint_spline_passes_through_its_points_and_is_c2():

@@ -42,12 +42,21 @@ def test_constant_command_flies_a_closed_circle_in_one_period():
     assert not result.finished
 
 
+def _step_response_tick_mean(t_s: np.ndarray, a_m_s2: float, tau_s: float, dt_s: float) -> np.ndarray:
+    """Mean over [t, t + dt] of the first-order step response a (1 - exp(-t / tau)), t >= 0:
+    a (1 - tau / dt exp(-t / tau) (1 - exp(-dt / tau)))."""
+    return a_m_s2 * (1.0 - tau_s / dt_s * np.exp(-t_s / tau_s) * (1.0 - math.exp(-dt_s / tau_s)))
+
+
 def test_lag_model_follows_a_step_with_the_first_order_response():
-    tau = 0.5
+    tau, dt = 0.5, 1.0 / PARAMS.rate_hz
     result = simulate(LINE, ConstantLaw(2.0), VehicleState(0.0, 0.0, 0.0, 5.0), PARAMS,
                       model=LagModel(tau_s=tau), t_max_s=3.0)
-    expected = 2.0 * (1 - np.exp(-result.t_s / tau))
+    # The flown acceleration of a tick is the response's mean over that tick.
+    expected = _step_response_tick_mean(result.t_s, 2.0, tau, dt)
     assert np.allclose(result.a_achieved_m_s2, expected, atol=1e-9)
+    # Its time integral is the course change: psi(t) = (1/V) int_0^t a.
+    assert result.course_rad[-1] == pytest.approx(np.sum(result.a_achieved_m_s2[:-1]) * dt / 5.0, abs=1e-12)
 
 
 def test_lag_model_saturates_the_command():
@@ -55,6 +64,24 @@ def test_lag_model_saturates_the_command():
                       model=LagModel(tau_s=0.0, a_max_m_s2=2.5), t_max_s=2.0)
     # Turning at 2.5 m/s^2 (not 9): the course changes at 0.5 rad/s.
     assert result.course_rad[-1] == pytest.approx(0.5 * result.t_s[-1], abs=1e-9)
+    # The raw command is kept; the saturated command and what was flown are 2.5; the metrics
+    # charge what was flown.
+    assert np.all(result.a_cmd_m_s2 == 9.0)
+    assert np.all(result.a_sat_m_s2 == 2.5) and np.all(result.a_achieved_m_s2 == 2.5)
+    assert result.metrics["a_rms_m_s2"] == pytest.approx(2.5) and result.metrics["a_max_m_s2"] == pytest.approx(2.5)
+
+
+def test_ideal_model_flies_the_command_exactly_on_the_tick_it_is_issued():
+    class Ramp:
+        def step(self, t_s, state):
+            return GuidanceOutput(a_cmd_m_s2=0.5 * t_s, phase="close_range", crosstrack_m=0.0, s_proj_m=0.0)
+
+    result = simulate(LINE, Ramp(), VehicleState(0.0, 0.0, 0.0, 5.0), PARAMS, t_max_s=1.0)
+    assert np.array_equal(result.a_achieved_m_s2, result.a_cmd_m_s2)
+    assert np.array_equal(result.a_sat_m_s2, result.a_cmd_m_s2)
+    # Course after the run: sum of a_i dt / V over the flown ticks (all but the last).
+    dt = 1.0 / PARAMS.rate_hz
+    assert result.course_rad[-1] == pytest.approx(sum(0.5 * i * dt for i in range(50)) * dt / 5.0, abs=1e-12)
 
 
 def test_wind_drifts_the_vehicle_and_the_law_sees_the_ground_course():
@@ -84,7 +111,7 @@ def test_lag_model_with_a_dead_time_is_the_step_response_shifted_by_it():
     result = simulate(LINE, ConstantLaw(2.0), VehicleState(0.0, 0.0, 0.0, 5.0), PARAMS,
                       model=LagModel(tau_s=tau, delay_s=delay), t_max_s=3.0)
     t = result.t_s
-    expected = np.where(t >= delay - 1e-9, 2.0 * (1 - np.exp(-(t - delay) / tau)), 0.0)
+    expected = np.where(t >= delay - 1e-9, _step_response_tick_mean(t - delay, 2.0, tau, 1.0 / PARAMS.rate_hz), 0.0)
     assert np.allclose(result.a_achieved_m_s2, expected, atol=1e-9)
 
 

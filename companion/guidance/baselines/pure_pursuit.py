@@ -14,7 +14,10 @@ Honest note: this is the same expression as Park's constant-L1 law (Park 2007 pr
 guidance as a relative of pure pursuit). The two differ only when the vehicle is farther than
 ``L_d`` from the path: pure pursuit then aims at the closest path point (the goal search never
 leaves it), whereas the two-phase law runs its mid-course phase. The benchmark keeps it as the
-law a mobile-robotics user would pick, swept over ``L_d``. Past the end of an open path the goal
+law a mobile-robotics user would pick, swept over ``L_d``. Our addition, as for the paper's laws
+(:mod:`companion.guidance.capture`): while the closest point lies behind the beam, the command
+is the bounded turn ``2 V^2 / L_d`` towards it, so a vehicle pointing away from the path comes
+back (Coulter's ``2 V^2 sin(alpha) / d`` is 0 with the goal dead astern). Past the end of an open path the goal
 is taken on the straight continuation of the end tangent (``companion.guidance.path_frame.goal_point``).
 """
 
@@ -23,6 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from companion.guidance.capture import capture_command_m_s2, capture_side
 from companion.guidance.path_frame import frame_output, PathLike, goal_point, path_frame, wrap_pi
 from companion.guidance.types import GuidanceOutput, VehicleState
 
@@ -58,6 +62,7 @@ class PurePursuitGuidance:
         self.path = path
         self.params = params if params is not None else PurePursuitParams()
         self._s_hint: float | None = None
+        self._capture_side = 0  # the side of the bounded capture turn (companion.guidance.capture)
 
     def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         p = self.params
@@ -68,11 +73,16 @@ class PurePursuitGuidance:
         goal = goal_point(self.path, state.x_m, state.y_m, ld, f.s_m)
         if goal is None:  # far from the path: the goal search stays at the closest point
             gx, gy = f.px_m, f.py_m
+            self._capture_side = capture_side(state.x_m, state.y_m, state.course_rad, gx, gy, f.tx, f.ty,
+                                              self._capture_side)
         else:
             gx, gy = goal
+            self._capture_side = 0
         dx, dy = gx - state.x_m, gy - state.y_m
         dist = math.hypot(dx, dy)
-        if dist < 1e-9:
+        if self._capture_side:  # the closest point behind the beam: our bounded capture turn
+            a_cmd = capture_command_m_s2(self._capture_side, v, ld)
+        elif dist < 1e-9:
             a_cmd = 0.0
         else:
             alpha = wrap_pi(math.atan2(dy, dx) - state.course_rad)

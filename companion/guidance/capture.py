@@ -1,0 +1,78 @@
+"""Capture from far off the path: a bounded turn when the closest path point lies behind.
+
+Our addition to the paper (and to pure pursuit), not part of either; ``docs/guidance.md``,
+"Capture far from the path".
+
+A law that aims at a look-ahead point on the path (constant L1, the corrector-aided law, pure
+pursuit) has no such point when the vehicle is farther than its look-ahead distance ``L`` from
+the path. It then aims at the closest path point P with Park's command
+``2 V^2 sin(eta) / max(d, L)`` (``eta`` the angle from the velocity to the line of sight to P,
+``d = |P - vehicle|``). While P lies ahead of the beam (``|eta| <= 90 deg``) that closes the
+distance. Behind the beam it does not: ``sin(eta)`` is small near 180 deg and exactly 0 when P
+lies dead astern, so a vehicle pointing away from the path flies on and never comes back.
+
+The rule here: while P lies behind the beam (``cos(eta) < 0``), turn towards it at the law's
+own bound ``2 V^2 / L`` (a circle of radius ``L / 2``): the vehicle strays at most ``L`` further
+before it points back at the path, so it never gets farther than ``d0 + 2 L`` from a path it
+started ``d0`` from, and the command stays within the law's bound ``|a| <= 2 V^2 / L``. The side
+is chosen on the first tick behind the beam and kept until P is ahead again (so the command
+cannot dither between sides when P is near dead astern): the side P lies on (the sign of
+``sin(eta)``), or, when P is within ``SIDE_EPS`` of dead astern, the side the path's direction
+at P lies on (so the vehicle joins it going its way), or left when both are undecided.
+
+Once P is ahead of the beam the law's own command (towards P, then the look-ahead point as soon
+as one exists) takes over again.
+"""
+
+from __future__ import annotations
+
+import math
+
+#: |sin| below which a direction counts as dead ahead or astern when choosing the side.
+SIDE_EPS = 1e-3
+
+
+def capture_side(x_m: float, y_m: float, course_rad: float, px_m: float, py_m: float,
+                 tx: float, ty: float, side: int) -> int:
+    """The side to turn at the law's bound, or 0 when the law's own command stands.
+
+    Parameters
+    ----------
+    x_m, y_m, course_rad : the vehicle's position and course (local ENU, radians).
+    px_m, py_m : the closest path point P.
+    tx, ty : the unit path tangent at P (its direction of travel).
+    side : the side returned on the previous tick (0 if none): kept while P stays behind.
+
+    Returns
+    -------
+    +1 (turn left), -1 (turn right), or 0: P is ahead of the beam (``cos(eta) >= 0``), or within
+    a millimetre of the vehicle.
+
+    Examples
+    --------
+    >>> capture_side(0.0, 0.0, -math.pi / 2, 0.0, 15.0, 1.0, 0.0, 0)  # P dead astern, path going east
+    1
+    >>> capture_side(0.0, 0.0, math.pi / 2, 0.0, 15.0, 1.0, 0.0, 1)  # P ahead: the law's own command
+    0
+    """
+    dx, dy = px_m - x_m, py_m - y_m
+    dist = math.hypot(dx, dy)
+    if dist < 1e-3:
+        return 0
+    c, s = math.cos(course_rad), math.sin(course_rad)
+    if c * dx + s * dy >= 0.0:  # ahead of the beam (or on it)
+        return 0
+    if side:
+        return side
+    sin_eta = (c * dy - s * dx) / dist
+    if abs(sin_eta) >= SIDE_EPS:
+        return 1 if sin_eta > 0.0 else -1
+    along = c * ty - s * tx  # velocity x path direction: > 0 when the path goes to the left
+    if abs(along) >= SIDE_EPS:
+        return 1 if along > 0.0 else -1
+    return 1
+
+
+def capture_command_m_s2(side: int, speed_m_s: float, reach_m: float) -> float:
+    """The bounded turn ``side * 2 V^2 / L`` (``L = reach_m``, the law's look-ahead distance)."""
+    return side * 2.0 * speed_m_s * speed_m_s / reach_m
