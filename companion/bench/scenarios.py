@@ -313,23 +313,24 @@ def first_crossing(x: np.ndarray, y: np.ndarray, closed: bool) -> tuple[int, int
     or None. Adjacent segments (and, closed, the last and the first) do not count."""
     ax, ay, bx, by = x[:-1], y[:-1], x[1:], y[1:]
     n = ax.size
-    for i in range(n):
-        j = np.arange(i + 2, n)
-        if closed and i == 0:
-            j = j[j != n - 1]
-        if j.size == 0:
-            continue
-        rx, ry = bx[i] - ax[i], by[i] - ay[i]
+    j = np.arange(n)
+    for i0 in range(0, n, 64):  # 64 segments against all the others at a time
+        i = np.arange(i0, min(i0 + 64, n))[:, None]
+        rx, ry = (bx[i] - ax[i]), (by[i] - ay[i])
         sx, sy = bx[j] - ax[j], by[j] - ay[j]
         den = rx * sy - ry * sx
         qx, qy = ax[j] - ax[i], ay[j] - ay[i]
         with np.errstate(divide="ignore", invalid="ignore"):
             t = (qx * sy - qy * sx) / den
             v = (qx * ry - qy * rx) / den
-        hit = (den != 0) & (t >= 0) & (t <= 1) & (v >= 0) & (v <= 1)
-        if np.any(hit):
-            m = int(np.flatnonzero(hit)[0])
-            return i, int(j[m]), float(ax[i] + t[m] * rx), float(ay[i] + t[m] * ry)
+        hit = (den != 0) & (t >= 0) & (t <= 1) & (v >= 0) & (v <= 1) & (j >= i + 2)
+        if closed:
+            hit &= ~((i == 0) & (j == n - 1))
+        rows, cols = np.nonzero(hit)
+        if rows.size:
+            r, c = int(rows[0]), int(cols[0])
+            ii = i0 + r
+            return ii, c, float(ax[ii] + t[r, c] * rx[r, 0]), float(ay[ii] + t[r, c] * ry[r, 0])
     return None
 
 
