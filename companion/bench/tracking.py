@@ -15,10 +15,18 @@ law              source                                         knob
 ``predictive``   ours (:mod:`companion.guidance.predictive`)    lambda (s^4)
 ===============  =============================================  ============
 
-Scenarios: the paper's sine from (-15, 0) at its 11 initial headings, a far start on the same
-sine, the gallery's racetrack, figure-eight and lawnmower missions (each from its own far
-start), and a tight S-turn. Models: ``ideal`` (the paper's kinematics) and ``lag`` (0.3 s
-first-order inner loop, |a| <= 5 m/s^2 as the mock copter, optional steady wind ``--wind``).
+Scenarios (each a :class:`~companion.bench.scenarios.ScenarioSpec`, data a worker rebuilds): the
+paper's sine from (-15, 0) at its 11 initial headings, a far start on the same sine, the
+gallery's racetrack, figure-eight and lawnmower missions (each from its own far start), and a
+tight S-turn; or any mission files (``--mission``: their start, speed and ``vehicle:`` block);
+or seeded random scenarios (``--random N --seed S``, :mod:`companion.bench.scenarios`). Models:
+``ideal`` (the paper's kinematics) and ``lag`` (the scenario's first-order inner loop, limit, dead
+time and wind; for the named scenarios 0.3 s and |a| <= 5 m/s^2 as the mock copter, optional
+steady wind ``--wind``).
+
+Runs: every (scenario, model, law, setting) is one task of a campaign
+(:mod:`companion.bench.campaign`) on a process pool, or on Dask with ``--dask``; ``--out FILE``
+streams the rows to a file and resumes from it.
 
 Measurement (the same for every law, from the simulated trajectory, not from what each law
 reports): ``d`` is the signed distance to the closest path point. ``reach_s`` is the first time
@@ -508,6 +516,8 @@ def select_specs(args) -> tuple[list[ScenarioSpec], list[str]]:
 
 def choose_executor(args):
     if args.dask:
+        if args.workers < 1:
+            raise CompanionError(f"bench tracking: --workers: expected a count >= 1, got {args.workers}")
         return dask_executor(args.workers, args.scheduler)
     if args.scheduler:
         raise CompanionError("bench tracking: --scheduler needs --dask")
