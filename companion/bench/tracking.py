@@ -592,8 +592,9 @@ def run(args) -> int:
         where = (f"the scheduler at {args.scheduler}" if args.scheduler else f"{args.workers} local workers") \
             if args.dask else f"{max(1, args.jobs)} processes"
         rate = counts["ran"] / wall if wall > 0 else math.nan
-        print(f"campaign: {counts['runs']} runs, {counts['from_file']} already in {args.out}, {counts['ran']} run "
-              f"in {wall:.1f} s on {where} ({rate:.2f} runs/s)", file=sys.stderr)
+        found = f", {counts['from_file']} already in {args.out}" if args.out else ""
+        print(f"campaign: {counts['runs']} runs{found}, {counts['ran']} run in {wall:.1f} s on {where} "
+              f"({rate:.2f} runs/s)", file=sys.stderr)
     summary = summarise(rows)
     if args.plot:
         for name in plot_fronts(rows, args.plot):
