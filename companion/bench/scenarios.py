@@ -52,6 +52,8 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from companion.errors import CompanionError, MissionError
+
 #: Bench defaults: the mock copter's lag model at the bench speed.
 BENCH_SPEED_M_S = 5.0
 BENCH_LAG_S = 0.3
@@ -78,7 +80,7 @@ CATEGORIES: tuple[tuple[str, str], ...] = tuple(
     (p, s) for p in PATH_KINDS for s in START_KINDS if s != "crossing" or p.endswith("crossing"))
 
 
-class ScenarioError(ValueError):
+class ScenarioError(CompanionError, ValueError):
     """A scenario description is unusable (what, and what was expected)."""
 
 
@@ -168,14 +170,17 @@ def spec_id(spec: ScenarioSpec) -> str:
 def build_path(spec: ScenarioSpec):
     """The scenario's :class:`~companion.geometry.paths.Path` (built by the mission loader; the
     last few are cached, so a worker running several rows of one scenario builds it once)."""
-    return _path_of_text(spec.mission_text, spec.name)
+    try:
+        return _path_of_text(spec.mission_text)
+    except MissionError as err:
+        raise ScenarioError(f"scenario {spec.name}: {err.problems[0]}") from None
 
 
 @functools.lru_cache(maxsize=8)
-def _path_of_text(text: str, name: str):
+def _path_of_text(text: str):
     from companion.mission import parse_mission
 
-    return parse_mission(text, name).path
+    return parse_mission(text, "mission_text").path
 
 
 def spec_from_mission(mission, name: str) -> ScenarioSpec:

@@ -499,8 +499,9 @@ def select_specs(args) -> tuple[list[ScenarioSpec], list[str]]:
     for name in names:
         if name not in scenario_names():
             raise CompanionError(f"bench tracking: --scenario: unknown {name!r}; expected one of {', '.join(scenario_names())}")
-    specs = [spec for spec in (named_spec(n) for n in names) if spec is not None]
-    missing = [n for n in names if named_spec(n) is None]
+    named = {n: named_spec(n) for n in names}
+    specs = [spec for spec in named.values() if spec is not None]
+    missing = [n for n, spec in named.items() if spec is None]
     specs += mission_specs(args.mission or [])
     if args.wind:
         wind = parse_wind(args.wind)

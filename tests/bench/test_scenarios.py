@@ -154,6 +154,9 @@ def test_a_spec_round_trips_through_json_and_rebuilds_the_same_path():
         ScenarioSpec.from_dict({**spec.to_dict(), "colour": "red"})
     with pytest.raises(ScenarioError, match="speed_m_s: expected a number > 0"):
         ScenarioSpec.from_dict({**spec.to_dict(), "speed_m_s": 0.0})
+    broken = ScenarioSpec.from_dict({**spec.to_dict(), "mission_text": '{"name": "x", "speed_m_s": 5.0}'})
+    with pytest.raises(ScenarioError, match="scenario random_1009: mission_text: path: missing"):
+        build_path(broken)
 
 
 def test_named_scenarios_are_the_bench_paths_they_always_were():
