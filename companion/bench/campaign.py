@@ -169,7 +169,7 @@ def dask_executor(workers: int = 2, scheduler: str | None = None, processes: boo
             cluster = None
         else:
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                                   dashboard_address=None, scheduler_port=0, silence_logs=logging.ERROR)
+                                   dashboard_address=":0", scheduler_port=0, silence_logs=logging.ERROR)
             client = Client(cluster)
         try:
             futures = {client.submit(run, tasks[i], key=f"bench-run-{ids[i]}", pure=False): i for i in order}
