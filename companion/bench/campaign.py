@@ -168,8 +168,9 @@ def dask_executor(workers: int = 2, scheduler: str | None = None, processes: boo
                 raise CampaignError(f"--scheduler {scheduler}: cannot reach the scheduler ({err})") from None
             cluster = None
         else:
+            # Logs silenced: a worker's heartbeat racing the cluster's shutdown logs a traceback.
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                                   dashboard_address=":0", scheduler_port=0, silence_logs=logging.ERROR)
+                                   dashboard_address=":0", scheduler_port=0, silence_logs=logging.CRITICAL)
             client = Client(cluster)
         try:
             futures = {client.submit(run, tasks[i], key=f"bench-run-{ids[i]}", pure=False): i for i in order}
