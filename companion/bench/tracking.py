@@ -15,10 +15,18 @@ law              source                                         knob
 ``predictive``   ours (:mod:`companion.guidance.predictive`)    lambda (s^4)
 ===============  =============================================  ============
 
-Scenarios: the paper's sine from (-15, 0) at its 11 initial headings, a far start on the same
-sine, the gallery's racetrack, figure-eight and lawnmower missions (each from its own far
-start), and a tight S-turn. Models: ``ideal`` (the paper's kinematics) and ``lag`` (0.3 s
-first-order inner loop, |a| <= 5 m/s^2 as the mock copter, optional steady wind ``--wind``).
+Scenarios (each a :class:`~companion.bench.scenarios.ScenarioSpec`, data a worker rebuilds): the
+paper's sine from (-15, 0) at its 11 initial headings, a far start on the same sine, the
+gallery's racetrack, figure-eight and lawnmower missions (each from its own far start), and a
+tight S-turn; or any mission files (``--mission``: their start, speed and ``vehicle:`` block);
+or seeded random scenarios (``--random N --seed S``, :mod:`companion.bench.scenarios`). Models:
+``ideal`` (the paper's kinematics) and ``lag`` (the scenario's first-order inner loop, limit, dead
+time and wind; for the named scenarios 0.3 s and |a| <= 5 m/s^2 as the mock copter, optional
+steady wind ``--wind``).
+
+Runs: every (scenario, model, law, setting) is one task of a campaign
+(:mod:`companion.bench.campaign`) on a process pool, or on Dask with ``--dask``; ``--out FILE``
+streams the rows to a file and resumes from it.
 
 Measurement (the same for every law, from the simulated trajectory, not from what each law
 reports): ``d`` is the signed distance to the closest path point. ``reach_s`` is the first time
@@ -39,20 +47,23 @@ import math
 import os
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path as FilePath
 from typing import Callable
 
 import numpy as np
 
-from companion.errors import CompanionError
+from companion.bench.campaign import RowFile, dask_executor, finite_json, pool_executor, run_campaign
+from companion.bench.scenarios import (BENCH_A_MAX_M_S2, BENCH_LAG_S, BENCH_SPEED_M_S, ScenarioSpec, build_path,
+                                       function_mission_text, random_specs, spec_from_mission, spec_id)
+from companion.errors import CompanionError, MissionError
 
 REACH_TOL_M = 1.0
 END_MARGIN_M = 20.0
-SPEED_M_S = 5.0
+SPEED_M_S = BENCH_SPEED_M_S  # the named scenarios' speed
 RATE_HZ = 50.0
-LAG_TAU_S = 0.3
-LAG_A_MAX_M_S2 = 5.0
+LAG_TAU_S = BENCH_LAG_S  # the bench's lag model (a scenario without a vehicle: block)
+LAG_A_MAX_M_S2 = BENCH_A_MAX_M_S2
 SINE_X_END_M = 150.0  # the paper sine from x = -15 m to here (248 m of path)
 PAPER_HEADINGS_DEG = tuple(-20.882 + 15.0 * k for k in range(11))
 MISSIONS_DIR = FilePath(__file__).resolve().parents[2] / "missions"
@@ -84,44 +95,12 @@ QUICK_SCENARIOS = ("s_turn", "paper_sine_h05")
 
 
 # ----------------------------------------------------------------------------- scenarios
-@dataclass(frozen=True)
-class Scenario:
-    """A path and a start (position, heading) at the bench speed."""
-
-    name: str
-    path: object
-    x_m: float
-    y_m: float
-    heading_rad: float
-    circle_radius_m: float = 10.0
-
-
-def _paper_sine():
-    from companion.geometry.paths import function_path
-
-    return function_path(lambda x: 10.0 * np.sin(0.078 * x) + 20.0 * np.cos(0.082 * x), (-15.0, SINE_X_END_M))
-
-
-def _s_turn():
-    from companion.geometry.paths import function_path
-
-    # One full period of y = 12 sin(0.12 x): two opposite bends of 5.8 m minimum radius
-    # (V^2 / R = 4.3 m/s^2 at 5 m/s, within the 5 m/s^2 limit of the lag model).
-    return function_path(lambda x: 12.0 * np.sin(0.12 * x), (0.0, 2.0 * math.pi / 0.12 + 25.0))
-
-
-def _gallery(file_name: str) -> Scenario | None:
-    from companion.mission import load_mission
-
-    path = MISSIONS_DIR / file_name
-    if not path.exists():
-        return None
-    m = load_mission(str(path))
-    sx, sy = m.path.start_xy_m
-    start = m.start
-    if start is None:
-        return Scenario(file_name, m.path, sx, sy, m.path.start_heading_rad, m.guidance.circle_radius_m)
-    return Scenario(file_name, m.path, start.x_m, start.y_m, start.heading_rad, m.guidance.circle_radius_m)
+PAPER_SINE_TEXT = function_mission_text("paper_sine", "10.0*sin(0.078*x) + 20.0*cos(0.082*x)", (-15.0, SINE_X_END_M))
+# One full period of y = 12 sin(0.12 x): two opposite bends of 5.8 m minimum radius
+# (V^2 / R = 4.3 m/s^2 at 5 m/s, within the 5 m/s^2 limit of the lag model).
+S_TURN_TEXT = function_mission_text("s_turn", "12.0*sin(0.12*x)", (0.0, 2.0 * math.pi / 0.12 + 25.0))
+GALLERY_FILES = {"racetrack": "racetrack.yaml", "figure_eight": "figure_eight.yaml",
+                 "lawnmower": "survey_lawnmower.yaml"}
 
 
 def scenario_names() -> list[str]:
@@ -129,44 +108,73 @@ def scenario_names() -> list[str]:
     return names + ["far_start", "racetrack", "figure_eight", "lawnmower", "s_turn"]
 
 
-_CACHE: dict[str, Scenario | None] = {}
-
-
-def build_scenario(name: str) -> Scenario | None:
-    """The scenario of that name (None if its mission file is missing)."""
-    if name in _CACHE:
-        return _CACHE[name]
-    if name.startswith("paper_sine_h"):
+def named_spec(name: str) -> ScenarioSpec | None:
+    """The bench scenario of that name (None if its mission file is missing)."""
+    if name.startswith("paper_sine_h") and name in scenario_names():
         k = int(name[len("paper_sine_h"):]) - 1
-        sc = Scenario(name, _paper_sine(), -15.0, 0.0, math.radians(PAPER_HEADINGS_DEG[k]))
-    elif name == "far_start":
-        sc = Scenario(name, _paper_sine(), -70.0, -50.0, math.radians(90.0))
-    elif name == "s_turn":
-        sc = Scenario(name, _s_turn(), -5.0, -2.0, 0.3)
-    elif name in ("racetrack", "figure_eight"):
-        sc = _gallery(f"{name}.yaml")
-        sc = None if sc is None else Scenario(name, sc.path, sc.x_m, sc.y_m, sc.heading_rad, sc.circle_radius_m)
-    elif name == "lawnmower":
-        sc = _gallery("survey_lawnmower.yaml")
-        sc = None if sc is None else Scenario(name, sc.path, sc.x_m, sc.y_m, sc.heading_rad, sc.circle_radius_m)
-    else:
-        raise CompanionError(f"bench tracking: unknown scenario {name!r}; expected one of {', '.join(scenario_names())}")
-    _CACHE[name] = sc
-    return sc
+        return ScenarioSpec(name, PAPER_SINE_TEXT, -15.0, 0.0, math.radians(PAPER_HEADINGS_DEG[k]))
+    if name == "far_start":
+        return ScenarioSpec(name, PAPER_SINE_TEXT, -70.0, -50.0, math.radians(90.0))
+    if name == "s_turn":
+        return ScenarioSpec(name, S_TURN_TEXT, -5.0, -2.0, 0.3)
+    if name in GALLERY_FILES:
+        file = MISSIONS_DIR / GALLERY_FILES[name]
+        if not file.exists():
+            return None
+        from companion.mission import load_mission
+
+        return replace(spec_from_mission(load_mission(str(file)), name), category="bench")
+    raise CompanionError(f"bench tracking: unknown scenario {name!r}; expected one of {', '.join(scenario_names())}")
+
+
+def mission_specs(files: list[str]) -> list[ScenarioSpec]:
+    """One scenario per mission file (named by the file as given); a bad file is one line."""
+    from companion.mission import load_mission
+
+    specs = []
+    for file in files:
+        try:
+            mission = load_mission(file)
+        except MissionError as err:
+            problems = err.problems
+            more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
+            raise CompanionError(f"bench tracking: --mission: {problems[0]}{more}") from None
+        specs.append(spec_from_mission(mission, str(file)))
+    return specs
 
 
 # ----------------------------------------------------------------------------- laws
 @dataclass(frozen=True)
 class ModelSpec:
-    name: str  # "ideal" or "lag"
-    wind_enu_m_s: tuple[float, float] = (0.0, 0.0)
+    name: str  # "ideal" (the paper's kinematics) or "lag" (the scenario's lag model and wind)
 
-    def sim_model(self):
+    def sim_model(self, sc: ScenarioSpec):
         from companion.sim.simulator import LagModel
 
         if self.name == "ideal":
             return None
-        return LagModel(tau_s=LAG_TAU_S, a_max_m_s2=LAG_A_MAX_M_S2, wind_enu_m_s=self.wind_enu_m_s)
+        return LagModel(tau_s=sc.lag_s, a_max_m_s2=sc.a_max_m_s2, wind_enu_m_s=sc.wind_enu_m_s, delay_s=sc.delay_s)
+
+
+MODELS = (ModelSpec("ideal"), ModelSpec("lag"))
+
+
+@dataclass(frozen=True)
+class Task:
+    """One run of the bench: a law at one setting, on one scenario, in one model."""
+
+    spec: ScenarioSpec
+    model: ModelSpec
+    law: str
+    setting: float
+
+
+def task_id(task: Task) -> str:
+    """Stable id of a run: the scenario's whole description, the model, the law and the setting."""
+    import hashlib
+
+    text = json.dumps([spec_id(task.spec), task.model.name, task.law, task.setting])
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:20]
 
 
 class _CommonEnd:
@@ -185,15 +193,15 @@ class _CommonEnd:
         return out
 
 
-def make_law(law: str, setting: float, sc: Scenario, model: ModelSpec):
+def make_law(law: str, setting: float, sc: ScenarioSpec, model: ModelSpec):
     """A fresh guidance object for one run."""
-    path = sc.path
-    wx, wy = model.wind_enu_m_s
+    path = build_path(sc)
+    wx, wy = sc.wind_enu_m_s if model.name == "lag" else (0.0, 0.0)
     if law in ("fixed_l1", "corrector"):
         from companion.guidance.two_phase import TwoPhaseGuidance
         from companion.guidance.types import GuidanceParams
 
-        params = GuidanceParams(method=law, l1_m=setting, speed_m_s=SPEED_M_S, rate_hz=RATE_HZ,
+        params = GuidanceParams(method=law, l1_m=setting, speed_m_s=sc.speed_m_s, rate_hz=RATE_HZ,
                                 circle_radius_m=sc.circle_radius_m)
         return TwoPhaseGuidance(path, params)
     if law == "ap_l1":
@@ -214,7 +222,8 @@ def make_law(law: str, setting: float, sc: Scenario, model: ModelSpec):
         if model.name == "ideal":
             params = PredictiveParams(lambda_s4=setting)
         else:
-            params = PredictiveParams(lambda_s4=setting, lag_s=LAG_TAU_S, a_max_m_s2=LAG_A_MAX_M_S2,
+            # The rollouts' single lag stands for lag plus dead time (VehicleModel.rollout_tau_s).
+            params = PredictiveParams(lambda_s4=setting, lag_s=sc.lag_s + sc.delay_s, a_max_m_s2=sc.a_max_m_s2,
                                       wind_x_m_s=wx, wind_y_m_s=wy)
         return PredictiveGuidance(path, params)
     raise CompanionError(f"bench tracking: unknown law {law!r}; expected one of {', '.join(LAW_ORDER)}")
@@ -234,25 +243,25 @@ def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
     return d
 
 
-def run_one(task: tuple) -> dict:
+def run_one(task: Task) -> dict:
     """Simulate one (scenario, model, law, setting) and measure it; returns one row."""
     from companion.guidance.types import GuidanceParams, VehicleState
     from companion.sim.metrics import tracking_metrics
     from companion.sim.simulator import simulate
 
-    scenario_name, model, law, setting = task
-    sc = build_scenario(scenario_name)
-    path = sc.path
-    start = VehicleState(sc.x_m, sc.y_m, sc.heading_rad, SPEED_M_S)
+    sc, model, law, setting = task.spec, task.model, task.law, task.setting
+    scenario_name = sc.name
+    path = build_path(sc)
+    start = VehicleState(sc.x_m, sc.y_m, sc.heading_rad, sc.speed_m_s)
     if path.closed:
         sx, sy = path.start_xy_m
-        t_max = (math.hypot(sc.x_m - sx, sc.y_m - sy) + path.length_m) / SPEED_M_S + 10.0
+        t_max = (math.hypot(sc.x_m - sx, sc.y_m - sy) + path.length_m) / sc.speed_m_s + 10.0
     else:
         t_max = None
     t0 = time.perf_counter()
     guidance = _CommonEnd(make_law(law, setting, sc, model), path)
-    res = simulate(path, guidance, start, GuidanceParams(speed_m_s=SPEED_M_S, rate_hz=RATE_HZ),
-                   model=model.sim_model(), t_max_s=t_max)
+    res = simulate(path, guidance, start, GuidanceParams(speed_m_s=sc.speed_m_s, rate_hz=RATE_HZ),
+                   model=model.sim_model(sc), t_max_s=t_max)
     wall = time.perf_counter() - t0
     d = true_crosstrack_m(path, res.x_m, res.y_m)
     reached = np.flatnonzero(np.abs(d) <= REACH_TOL_M)
@@ -451,102 +460,153 @@ def parse_wind(text: str | None) -> tuple[float, float]:
     return east, north
 
 
-def build_tasks(scenarios, laws, quick: bool, wind) -> list[tuple]:
-    settings = QUICK_SETTINGS if quick else FULL_SETTINGS
-    tasks = []
-    for name in scenarios:
-        if build_scenario(name) is None:
-            continue
-        for model in (ModelSpec("ideal"), ModelSpec("lag", wind)):
-            for law in laws:
-                for setting in settings[law]:
-                    tasks.append((name, model, law, setting))
-    return tasks
+def settings_for(law: str, spec: ScenarioSpec, quick: bool) -> tuple[float, ...]:
+    """The settings swept: distance knobs (L1, look-ahead) scale with the scenario's speed
+    (``setting * V / 5 m/s``, 4 significant digits) so they span the same look-ahead times at every
+    speed; periods and lambda are the same everywhere. At the bench speed nothing changes."""
+    base = (QUICK_SETTINGS if quick else FULL_SETTINGS)[law]
+    if KNOBS[law] in ("l1_m", "lookahead_m") and spec.speed_m_s != SPEED_M_S:
+        return tuple(float(f"{v * spec.speed_m_s / SPEED_M_S:.4g}") for v in base)
+    return base
 
 
-def run_tasks(tasks: list[tuple], jobs: int, progress: Callable[[int, int], None] | None = None) -> list[dict]:
-    if jobs <= 1 or len(tasks) < 2:
-        rows = []
-        for i, t in enumerate(tasks):
-            rows.append(run_one(t))
-            if progress:
-                progress(i + 1, len(tasks))
-        return rows
-    import multiprocessing as mp
-
-    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
-    # Longest first (closed paths, then the sine) keeps both workers busy to the end.
-    order = sorted(range(len(tasks)), key=lambda i: tasks[i][2] != "predictive")
-    rows: list = [None] * len(tasks)
-    with ctx.Pool(jobs) as pool:
-        for n, (i, row) in enumerate(pool.imap_unordered(_indexed_run, [(i, tasks[i]) for i in order]), 1):
-            rows[i] = row
-            if progress:
-                progress(n, len(tasks))
-    return rows
+def build_tasks(specs: list[ScenarioSpec], laws, quick: bool) -> list[Task]:
+    return [Task(spec, model, law, setting) for spec in specs for model in MODELS for law in laws
+            for setting in settings_for(law, spec, quick)]
 
 
-def _indexed_run(item):
-    i, task = item
-    return i, run_one(task)
+def run_tasks(tasks: list[Task], jobs: int, progress: Callable[[int, int], None] | None = None, *,
+              executor=None, out: str | None = None) -> tuple[list[dict], dict]:
+    """Rows in task order and the campaign's counts; on ``jobs`` processes unless another executor
+    (:mod:`companion.bench.campaign`) is given, streamed to and resumed from ``out`` if given."""
+    # Longest first (the predictive law's runs) keeps every worker busy to the end.
+    order = sorted(range(len(tasks)), key=lambda i: tasks[i].law != "predictive")
+    return run_campaign(tasks, run_one, [task_id(t) for t in tasks], executor=executor or pool_executor(jobs),
+                        out=RowFile(out) if out else None, order=order, progress=progress)
+
+
+def select_specs(args) -> tuple[list[ScenarioSpec], list[str]]:
+    """The scenarios of the command line, and the named ones skipped (mission file missing)."""
+    if args.wind and args.random:
+        raise CompanionError("bench tracking: --wind: random scenarios draw their own wind; use --wind with "
+                             "--scenario or --mission")
+    if args.random is not None and args.random < 1:
+        raise CompanionError(f"bench tracking: --random: expected a count >= 1, got {args.random}")
+    if args.seed < 0:
+        raise CompanionError(f"bench tracking: --seed: expected an integer >= 0, got {args.seed}")
+    default = list(QUICK_SCENARIOS) if args.quick else scenario_names()
+    names = args.scenario or ([] if (args.mission or args.random) else default)
+    for name in names:
+        if name not in scenario_names():
+            raise CompanionError(f"bench tracking: --scenario: unknown {name!r}; expected one of {', '.join(scenario_names())}")
+    named = {n: named_spec(n) for n in names}
+    specs = [spec for spec in named.values() if spec is not None]
+    missing = [n for n, spec in named.items() if spec is None]
+    specs += mission_specs(args.mission or [])
+    if args.wind:
+        wind = parse_wind(args.wind)
+        specs = [replace(spec, wind_enu_m_s=wind) for spec in specs]
+    specs += random_specs(args.random, args.seed) if args.random else []
+    seen: set[str] = set()
+    for spec in specs:
+        if spec.name in seen:
+            raise CompanionError(f"bench tracking: scenario {spec.name!r} given twice")
+        seen.add(spec.name)
+    return specs, missing
+
+
+def choose_executor(args):
+    if args.dask:
+        if args.workers < 1:
+            raise CompanionError(f"bench tracking: --workers: expected a count >= 1, got {args.workers}")
+        return dask_executor(args.workers, args.scheduler)
+    if args.scheduler:
+        raise CompanionError("bench tracking: --scheduler needs --dask")
+    return pool_executor(max(1, args.jobs))
+
+
+class _Progress:
+    """A progress bar on stderr when it is a terminal (tqdm if installed, else a counter)."""
+
+    def __init__(self) -> None:
+        self.bar = None
+        self.shown = sys.stderr.isatty()
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.shown:
+            return
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            print(f"\r{done}/{total} runs", end="", file=sys.stderr, flush=True)
+            return
+        if self.bar is None:
+            self.bar = tqdm(total=total, initial=done, unit="run", file=sys.stderr, dynamic_ncols=True)
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        elif self.shown:
+            print(file=sys.stderr)
 
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "tracking", help="fronts of cross-track error against acceleration for every law",
-        description="Sweep every guidance law over its main knob on the scenario gallery, in the "
-                    "ideal and the lag model, and compare the Pareto fronts of d_rms against a_rms.")
-    parser.add_argument("--json", action="store_true", help="print one JSON object {rows, summary}")
+        description="Sweep every guidance law over its main knob on the scenario gallery (or on mission "
+                    "files, or on seeded random scenarios), in the ideal and the lag model, and compare "
+                    "the Pareto fronts of d_rms against a_rms. docs/benchmarks.md.")
+    parser.add_argument("--json", action="store_true", help="print one JSON object {rows, summary, scenarios}")
     parser.add_argument("--plot", metavar="DIR", help="write the fronts as PNG files into DIR")
     parser.add_argument("--quick", action="store_true", help="reduced form for CI (S-turn and one paper heading, two settings per law)")
     parser.add_argument("--scenario", action="append", metavar="NAME",
                         help=f"only these scenarios (repeatable): {', '.join(scenario_names())}")
+    parser.add_argument("--mission", nargs="+", metavar="FILE", help="mission files as scenarios (their start, "
+                        "speed and vehicle: block; the bench's lag model without one)")
+    parser.add_argument("--random", type=int, metavar="N", help="N seeded random scenarios (seeds S .. S+N-1)")
+    parser.add_argument("--seed", type=int, default=0, metavar="S", help="first seed of --random (default 0)")
     parser.add_argument("--law", action="append", metavar="LAW", choices=LAW_ORDER, help="only these laws (repeatable)")
     parser.add_argument("--wind", metavar="EAST,NORTH", help="steady wind of the lag model, m/s (known to npfg and predictive)")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes (default 2)")
+    parser.add_argument("--dask", action="store_true", help="run every run as a Dask task (needs companion[campaign])")
+    parser.add_argument("--workers", type=int, default=2, metavar="N", help="--dask: local cluster workers (default 2)")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:8786", help="--dask: a running scheduler instead of a local cluster")
+    parser.add_argument("--out", metavar="FILE.jsonl", help="stream every finished row to FILE; a rerun with the "
+                        "same FILE resumes (runs already there are not run again)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    wind = parse_wind(args.wind)
-    scenarios = args.scenario or (list(QUICK_SCENARIOS) if args.quick else scenario_names())
-    for name in scenarios:
-        if name not in scenario_names():
-            raise CompanionError(f"bench tracking: --scenario: unknown {name!r}; expected one of {', '.join(scenario_names())}")
+    specs, missing = select_specs(args)
     laws = args.law or list(LAW_ORDER)
-    missing = [n for n in scenarios if build_scenario(n) is None]
-    tasks = build_tasks(scenarios, laws, args.quick, wind)
+    tasks = build_tasks(specs, laws, args.quick)
+    executor = choose_executor(args)
     t0 = time.perf_counter()
-
-    def progress(done: int, total: int) -> None:
-        if not args.json and sys.stderr.isatty():
-            print(f"\r{done}/{total} runs", end="", file=sys.stderr, flush=True)
-
-    rows = run_tasks(tasks, max(1, args.jobs), progress)
-    if not args.json and sys.stderr.isatty():
-        print(file=sys.stderr)
-    summary = summarise(rows)
+    progress = _Progress()
+    try:
+        rows, counts = run_tasks(tasks, max(1, args.jobs), progress, executor=executor, out=args.out)
+    finally:
+        progress.close()
     wall = time.perf_counter() - t0
+    if args.out or args.dask:
+        where = (f"the scheduler at {args.scheduler}" if args.scheduler else f"{args.workers} local workers") \
+            if args.dask else f"{max(1, args.jobs)} processes"
+        rate = counts["ran"] / wall if wall > 0 else math.nan
+        found = f", {counts['from_file']} already in {args.out}" if args.out else ""
+        print(f"campaign: {counts['runs']} runs{found}, {counts['ran']} run in {wall:.1f} s on {where} "
+              f"({rate:.2f} runs/s)", file=sys.stderr)
+    summary = summarise(rows)
     if args.plot:
         for name in plot_fronts(rows, args.plot):
             print(f"wrote {name}", file=sys.stderr)
     if args.json:
-        print(json.dumps(_finite({"rows": rows, "summary": summary, "missing_scenarios": missing,
-                                  "wall_s": wall}), allow_nan=False))
+        print(json.dumps(finite_json({"rows": rows, "summary": summary, "missing_scenarios": missing,
+                                      "scenarios": [spec.summary() for spec in specs], "wall_s": wall}),
+                         allow_nan=False))
     else:
         print(render_tables(rows, summary))
         if missing:
             print(f"\nskipped (mission file missing): {', '.join(missing)}")
         print(f"\n{len(rows)} runs in {wall:.1f} s")
     return 0
-
-
-def _finite(value):
-    """NaN and infinities to None (JSON has neither), recursively."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    return value
