@@ -168,7 +168,9 @@ def corrector_command(x1_m: float, y1_m: float, course_rad: float, speed_m_s: fl
     if w1s + w2s <= 0.0:
         a = a12
     else:
-        a = (w1s * a12 + w2s * a14) / (w1s + w2s)
+        # The weighted mean as a step from a12 towards a14 by the share w2 / (w1 + w2) in [0, 1]:
+        # it stays between the two terms even when a weight underflows to a subnormal number.
+        a = a12 + (a14 - a12) * (w2s / (w1s + w2s))
     if k_l1 == 0.0:
         w1, w2 = (math.inf if k1 > 0 else 0.0), 0.0
     else:
@@ -220,5 +222,6 @@ def corrector_command_vxy(x1_m: Floats, y1_m: Floats, vx: Floats, vy: Floats, sp
     w1s = k1 / (1.0 + np.abs(lat2))
     w2s = np.where(ok, k2 * v_m * k_l1 * k_l1 / (1.0 + np.abs(lat4)), 0.0)
     tot = w1s + w2s
-    out: NDArray[np.float64] = np.where(tot > 0.0, (w1s * a12 + w2s * a14) / np.where(tot > 0.0, tot, 1.0), a12)
+    share = w2s / np.where(tot > 0.0, tot, 1.0)  # as corrector_command: a step from a12 towards a14
+    out: NDArray[np.float64] = np.where(tot > 0.0, a12 + (a14 - a12) * share, a12)
     return out
