@@ -51,7 +51,7 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.signal import lfilter
 
-from companion.geometry.paths import Path
+from companion.geometry.paths import PROJECT_WINDOW_FACTOR, PROJECT_WINDOW_MIN_M, Path
 from companion.guidance.path_frame import path_frame
 from companion.guidance.types import VehicleState
 from companion.sim.simulator import LagModel
@@ -59,8 +59,8 @@ from companion.sim.simulator import LagModel
 #: Block lengths (ticks) of the coarse-to-fine refinement; the last level is always per tick. From a
 #: causal law's commands the per-tick level alone converged as well and sooner on the bench's scenarios.
 DEFAULT_LEVELS = (1,)
-#: Newton iterations of the vectorised projection before a tick falls back to the scalar search.
-_NEWTON_ITERS = 8
+#: Passes of the vectorised projection before it falls back to projecting tick by tick.
+_PROJECTION_PASSES = 6
 #: Below this turn angle over a tick (rad) the arc factors use their Taylor series.
 _SMALL_TURN_RAD = 1e-4
 
@@ -228,48 +228,70 @@ def crosstrack_sequential_m(path: Path, x_m: np.ndarray, y_m: np.ndarray) -> tup
     return d, s
 
 
-def _crosstrack_newton(path: Path, x: np.ndarray, y: np.ndarray,
-                       s_hint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Vectorised projection from per-tick hints: ``(d, s, nx, ny)``, ``n`` the path's left normal.
+def _newton_from_hints(path: Path, x: np.ndarray, y: np.ndarray, hint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`Path.project`'s Newton branch for every tick at once: ``(s, settled)``.
 
-    Newton on ``(P(s) - q) . t(s) = 0`` from each hint; a tick whose Newton does not settle, or
-    whose projection jumps from the previous tick's by more than the scalar search's window,
-    is redone by :meth:`Path.project` from the previous tick (the same rule as the bench).
+    From each hint, at most six Newton steps on ``(P(s) - q) . t(s) = 0``; a tick settles when a
+    step falls under 1e-7 m (the arc length before that step is kept, as :meth:`Path.project`
+    does) without leaving the search window around the hint or an open path's ends. Unsettled
+    ticks are left to :meth:`Path.project`'s window scan.
     """
-    s = s_hint.copy()
-    ok = np.ones(s.size, dtype=bool)
-    step = np.full(s.size, np.inf)
-    for _ in range(_NEWTON_ITERS):
+    length = path.length_m
+    s0 = np.mod(hint, length) if path.closed else np.clip(hint, 0.0, length)
+    px, py, _, _, _ = path.frame_array(s0)
+    window = PROJECT_WINDOW_FACTOR * np.hypot(x - px, y - py) + PROJECT_WINDOW_MIN_M
+    s = s0.copy()
+    result = np.full(s.size, np.nan)
+    active = np.ones(s.size, dtype=bool)
+    for _ in range(6):
         px, py, tx, ty, k = path.frame_array(s)
         dx, dy = px - x, py - y
         g = dx * tx + dy * ty
         dg = 1.0 + k * (-dx * ty + dy * tx)
-        ok &= dg > 0.05
-        s_new = s - np.where(ok, g / np.where(ok, dg, 1.0), 0.0)
+        active &= dg > 0.05
+        step = g / np.where(active, dg, 1.0)
+        done = active & (np.abs(step) < 1e-7)
+        result[done] = np.mod(s[done], length) if path.closed else s[done]
+        active &= ~done
+        s = np.where(active, s - step, s)
+        active &= np.abs(s - s0) <= window
         if not path.closed:
-            s_new = np.clip(s_new, 0.0, path.length_m)
-        step, s = s - s_new, s_new
-        if np.all(np.abs(step) < 1e-9):
+            active &= (s >= 0.0) & (s <= length)
+        if not active.any():
             break
-    if path.closed:
-        s = np.mod(s, path.length_m)
+    return result, np.isfinite(result)
+
+
+def _crosstrack_newton(path: Path, x: np.ndarray, y: np.ndarray,
+                       s_hint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The bench's projection (:func:`crosstrack_sequential_m`), vectorised: ``(d, s, nx, ny)``,
+    ``n`` the path's left normal at the closest point.
+
+    The bench projects tick ``k`` by :meth:`Path.project` from tick ``k - 1``'s projection. Here
+    every tick's projection is first taken from a guess (``s_hint``, e.g. the previous
+    evaluation's), then the recursion is iterated for all ticks at once: each pass projects
+    tick ``k`` from tick ``k - 1``'s current value, by the vectorised Newton branch or, where it
+    does not settle, by :meth:`Path.project` itself. Once a pass changes nothing, every tick
+    satisfies the bench's recursion from the same first tick, so the result is the bench's.
+    After ``_PROJECTION_PASSES`` passes without that, the ticks are projected one by one.
+    """
+    s_first = path.project(float(x[0]), float(y[0]), None)
+    s = np.asarray(s_hint, dtype=float).copy()
+    s[0] = s_first
+    for _ in range(_PROJECTION_PASSES):
+        s_new, settled = _newton_from_hints(path, x[1:], y[1:], s[:-1])
+        s_new = np.concatenate(([s_first], s_new))
+        for i in np.flatnonzero(~settled) + 1:
+            s_new[i] = path.project(float(x[i]), float(y[i]), float(s_new[i - 1]))
+        change = np.abs(s_new - s)
+        s = s_new
+        if path.closed:
+            change = np.minimum(change, path.length_m - change)
+        if np.all(change <= 1e-9):
+            break
+    else:
+        _, s = crosstrack_sequential_m(path, x, y)
     px, py, tx, ty, _ = path.frame_array(s)
-    # A clamped open end is settled too (the bench's distance is then the normal offset).
-    settled = np.abs(step) < 1e-6
-    if not path.closed:
-        settled |= (s <= 0.0) | (s >= path.length_m)
-    ok &= settled
-    jump = np.abs(np.diff(s))
-    if path.closed:
-        jump = np.minimum(jump, path.length_m - jump)
-    window = 2.0 * np.hypot(x[1:] - px[:-1], y[1:] - py[:-1]) + 2.0
-    ok[1:] &= jump <= window
-    bad = np.flatnonzero(~ok)
-    for i in bad:
-        hint = float(s[i - 1]) if i > 0 else None
-        s[i] = path.project(float(x[i]), float(y[i]), hint)
-        fx, fy, ftx, fty, _ = path.frame(float(s[i]))
-        px[i], py[i], tx[i], ty[i] = fx, fy, ftx, fty
     d = tx * (y - py) - ty * (x - px)
     return d, s, -ty, tx
 
@@ -278,17 +300,18 @@ class _Objective:
     """``J`` and its gradient for one problem and ``lambda``, remembering the last projection as
     the next evaluation's hints."""
 
-    def __init__(self, problem: OptimalProblem, lambda_s4: float, s_hint: np.ndarray) -> None:
+    def __init__(self, problem: OptimalProblem, lambda_s4: float, s_hint: np.ndarray, scale: float) -> None:
         self.problem = problem
         self.lambda_s4 = lambda_s4
         self.s_hint = s_hint
+        self.scale = scale  # the start's cost: the optimiser sees J / J_start, about 1
         self.evaluations = 0
 
     def __call__(self, a_cmd_m_s2: np.ndarray) -> tuple[float, np.ndarray]:
         self.evaluations += 1
         j, grad, s = cost_and_gradient(self.problem, self.lambda_s4, a_cmd_m_s2, self.s_hint)
         self.s_hint = s
-        return j, grad
+        return j / self.scale, grad / self.scale
 
 
 def cost_and_gradient(problem: OptimalProblem, lambda_s4: float, a_cmd_m_s2: np.ndarray,
@@ -386,8 +409,8 @@ def _refine(problem: OptimalProblem, lambda_s4: float, u0: np.ndarray, levels: S
     ``levels[i]`` ticks, the last level per tick under the box bounds."""
     n, a_max = problem.n_ticks, problem.a_max_m_s2
     u = np.clip(u0, -a_max, a_max)
-    _, _, s0 = cost_and_gradient(problem, lambda_s4, u)
-    obj = _Objective(problem, lambda_s4, s0)
+    j0, _, s0 = cost_and_gradient(problem, lambda_s4, u)
+    obj = _Objective(problem, lambda_s4, s0, scale=j0 if j0 > 0 else 1.0)
     iters, ok, message = 0, False, ""
     for block in levels:
         if block <= 1:
@@ -425,7 +448,8 @@ def solve_optimal(problem: OptimalProblem, lambda_s4: float,
     warm_starts : command sequences (``N`` each, e.g. a causal law's commands over the horizon,
         or the solution at a neighbouring lambda). None given: a start with every command 0.
     levels : block lengths of the coarse-to-fine refinement (ticks); the last must be 1.
-    max_iter, tol : per level, L-BFGS-B's iteration limit and relative cost tolerance.
+    max_iter, tol : per level, L-BFGS-B's iteration limit, and its tolerance on the reduction of
+        the cost per iteration, relative to the start's cost.
 
     Returns
     -------
