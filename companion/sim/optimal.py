@@ -228,6 +228,53 @@ def crosstrack_sequential_m(path: Path, x_m: np.ndarray, y_m: np.ndarray) -> tup
     return d, s
 
 
+def _scan_window(path: Path, x: np.ndarray, y: np.ndarray, hint: np.ndarray) -> np.ndarray:
+    """:meth:`Path.project`'s fallback for every tick at once: the closest table node within the
+    search window around the hint, refined by Newton within one node spacing."""
+    length = path.length_m
+    n = path.s_table_m.size - 1
+    h = length / n
+    s_hint = np.mod(hint, length) if path.closed else np.clip(hint, 0.0, length)
+    px, py, _, _, _ = path.frame_array(s_hint)
+    window = PROJECT_WINDOW_FACTOR * np.hypot(x - px, y - py) + PROJECT_WINDOW_MIN_M
+    c = (s_hint / h).astype(np.intp)
+    w = (window / h).astype(np.intp) + 2
+    lo, hi = c - w, c + w + 1
+    if path.closed:
+        whole = hi - lo >= n
+        lo, hi = np.where(whole, 0, lo), np.where(whole, n, hi)
+    else:
+        lo, hi = np.maximum(lo, 0), np.minimum(hi, n)
+    j = np.empty(x.size, dtype=np.intp)
+    width = int(np.max(hi - lo)) + 1 if x.size else 1
+    rows = max(1, 2_000_000 // width)
+    cols = np.arange(width)
+    for r0 in range(0, x.size, rows):
+        r = slice(r0, r0 + rows)
+        idx = lo[r, None] + cols[None, :]
+        valid = idx <= hi[r, None]
+        idx = np.mod(idx, n) if path.closed else np.minimum(idx, n)
+        d2 = (path.x_table_m[idx] - x[r, None]) ** 2 + (path.y_table_m[idx] - y[r, None]) ** 2
+        j[r] = idx[np.arange(idx.shape[0]), np.argmin(np.where(valid, d2, np.inf), axis=1)]
+    s = j * h
+    s_lo, s_hi = s - h, s + h
+    if not path.closed:
+        s_lo, s_hi = np.maximum(s_lo, 0.0), np.minimum(s_hi, length)
+    active = np.ones(x.size, dtype=bool)
+    for _ in range(3):
+        fx, fy, tx, ty, k = path.frame_array(s)
+        dx, dy = fx - x, fy - y
+        g = dx * tx + dy * ty
+        dg = 1.0 + k * (-dx * ty + dy * tx)
+        active &= dg > 1e-9
+        step = g / np.where(active, dg, 1.0)
+        s = np.where(active, np.clip(s - step, s_lo, s_hi), s)
+        active &= np.abs(step) >= 1e-9
+        if not active.any():
+            break
+    return np.mod(s, length) if path.closed else s
+
+
 def _newton_from_hints(path: Path, x: np.ndarray, y: np.ndarray, hint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Path.project`'s Newton branch for every tick at once: ``(s, settled)``.
 
@@ -240,24 +287,25 @@ def _newton_from_hints(path: Path, x: np.ndarray, y: np.ndarray, hint: np.ndarra
     s0 = np.mod(hint, length) if path.closed else np.clip(hint, 0.0, length)
     px, py, _, _, _ = path.frame_array(s0)
     window = PROJECT_WINDOW_FACTOR * np.hypot(x - px, y - py) + PROJECT_WINDOW_MIN_M
+    result = np.full(s0.size, np.nan)
+    live = np.arange(s0.size)  # ticks still iterating
     s = s0.copy()
-    result = np.full(s.size, np.nan)
-    active = np.ones(s.size, dtype=bool)
     for _ in range(6):
         px, py, tx, ty, k = path.frame_array(s)
-        dx, dy = px - x, py - y
+        xl, yl = x[live], y[live]
+        dx, dy = px - xl, py - yl
         g = dx * tx + dy * ty
         dg = 1.0 + k * (-dx * ty + dy * tx)
-        active &= dg > 0.05
-        step = g / np.where(active, dg, 1.0)
-        done = active & (np.abs(step) < 1e-7)
-        result[done] = np.mod(s[done], length) if path.closed else s[done]
-        active &= ~done
-        s = np.where(active, s - step, s)
-        active &= np.abs(s - s0) <= window
+        keep = dg > 0.05
+        step = g / np.where(keep, dg, 1.0)
+        done = keep & (np.abs(step) < 1e-7)
+        result[live[done]] = np.mod(s[done], length) if path.closed else s[done]
+        s = s - step
+        keep &= ~done & (np.abs(s - s0[live]) <= window[live])
         if not path.closed:
-            active &= (s >= 0.0) & (s <= length)
-        if not active.any():
+            keep &= (s >= 0.0) & (s <= length)
+        live, s = live[keep], s[keep]
+        if not live.size:
             break
     return result, np.isfinite(result)
 
@@ -271,23 +319,27 @@ def _crosstrack_newton(path: Path, x: np.ndarray, y: np.ndarray,
     every tick's projection is first taken from a guess (``s_hint``, e.g. the previous
     evaluation's), then the recursion is iterated for all ticks at once: each pass projects
     tick ``k`` from tick ``k - 1``'s current value, by the vectorised Newton branch or, where it
-    does not settle, by :meth:`Path.project` itself. Once a pass changes nothing, every tick
+    does not settle, by the vectorised window scan (both :meth:`Path.project`'s steps), and only
+    the ticks whose predecessor changed are redone. Once a pass changes nothing, every tick
     satisfies the bench's recursion from the same first tick, so the result is the bench's.
     After ``_PROJECTION_PASSES`` passes without that, the ticks are projected one by one.
     """
     s_first = path.project(float(x[0]), float(y[0]), None)
     s = np.asarray(s_hint, dtype=float).copy()
+    todo = np.arange(1, x.size)  # ticks whose predecessor changed
     s[0] = s_first
     for _ in range(_PROJECTION_PASSES):
-        s_new, settled = _newton_from_hints(path, x[1:], y[1:], s[:-1])
-        s_new = np.concatenate(([s_first], s_new))
-        for i in np.flatnonzero(~settled) + 1:
-            s_new[i] = path.project(float(x[i]), float(y[i]), float(s_new[i - 1]))
-        change = np.abs(s_new - s)
-        s = s_new
+        s_new, settled = _newton_from_hints(path, x[todo], y[todo], s[todo - 1])
+        bad = ~settled
+        if bad.any():
+            s_new[bad] = _scan_window(path, x[todo[bad]], y[todo[bad]], s[todo[bad] - 1])
+        change = np.abs(s_new - s[todo])
         if path.closed:
             change = np.minimum(change, path.length_m - change)
-        if np.all(change <= 1e-9):
+        s[todo] = s_new
+        moved = todo[change > 1e-9]
+        todo = moved[moved < x.size - 1] + 1
+        if not todo.size:
             break
     else:
         _, s = crosstrack_sequential_m(path, x, y)
@@ -437,7 +489,7 @@ def _refine(problem: OptimalProblem, lambda_s4: float, u0: np.ndarray, levels: S
 
 def solve_optimal(problem: OptimalProblem, lambda_s4: float,
                   warm_starts: Sequence[Sequence[float] | np.ndarray] = (), *,
-                  levels: Sequence[int] = DEFAULT_LEVELS, max_iter: int = 3000,
+                  levels: Sequence[int] = DEFAULT_LEVELS, max_iter: int = 1000,
                   tol: float = 1e-12) -> OptimalSolution:
     """Minimise ``J(lambda)`` over per-tick commands from each warm start; keep the best.
 
