@@ -191,7 +191,7 @@ def test_optimum_respects_saturation_and_replays_through_simulate_at_the_same_co
 def test_a_worse_start_is_never_returned_and_bad_input_is_named():
     problem = OptimalProblem.build(LINE, VehicleState(0.0, 1.0, 0.0, V_M_S), rate_hz=RATE_HZ, horizon_s=2.0,
                                    model=LAG)
-    zero = solve_optimal(problem, 0.1, [np.zeros(problem.n_ticks)])
+    zero = solve_optimal(problem, 0.1, [np.zeros(problem.n_ticks)], max_iter=20)
     assert zero.cost <= zero.warm_costs[0]
     with pytest.raises(ValueError, match="warm start"):
         solve_optimal(problem, 0.1, [np.zeros(3)])
