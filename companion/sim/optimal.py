@@ -43,7 +43,6 @@ positive to the left.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -445,7 +444,6 @@ class OptimalSolution:
     warm_costs: tuple[float, ...]
     iterations: int
     evaluations: int
-    solve_s: float
     converged: bool
     messages: tuple[str, ...] = field(default=())
 
@@ -512,7 +510,6 @@ def solve_optimal(problem: OptimalProblem, lambda_s4: float,
         raise ValueError(f"lambda_s4: expected a finite number >= 0, got {lambda_s4!r}")
     if not levels or levels[-1] != 1:
         raise ValueError(f"levels: the last level must be 1 (per-tick commands), got {tuple(levels)!r}")
-    t0 = time.perf_counter()
     starts = [np.asarray(w, dtype=float) for w in warm_starts] or [np.zeros(problem.n_ticks)]
     best: tuple[float, np.ndarray, Trajectory] | None = None
     costs, warm_costs, messages = [], [], []
@@ -541,7 +538,7 @@ def solve_optimal(problem: OptimalProblem, lambda_s4: float,
     return OptimalSolution(lambda_s4=lambda_s4, cost=j, d_rms_m=math.sqrt(traj.mean_d2_m2()),
                            a_rms_m_s2=math.sqrt(traj.mean_a2_m2_s4()), a_cmd_m_s2=u,
                            costs_by_start=tuple(costs), warm_costs=tuple(warm_costs), iterations=iters,
-                           evaluations=evals, solve_s=time.perf_counter() - t0, converged=converged,
+                           evaluations=evals, converged=converged,
                            messages=tuple(messages))
 
 
@@ -569,7 +566,7 @@ def bound_d_rms(a_rms_m_s2: float, front: BoundFront) -> float:
     >>> front = BoundFront((0.1, 1.0), (0.5, 2.0))
     >>> round(bound_d_rms(1.0, front), 6)  # max(0.5 - 0.1, 2.0 - 1.0) = 1.0
     1.0
-    >>> bound_d_rms(2.0, front)  # every lambda's line is below 0 there
+    >>> bound_d_rms(3.0, front)  # every lambda's line is below 0 there
     0.0
     """
     if not front.costs:
