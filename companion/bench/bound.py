@@ -27,8 +27,9 @@ import numpy as np
 
 from companion.errors import CompanionError
 
-#: The lambda grid of the bound (s^4): the predictive law's sweep.
-DEFAULT_LAMBDAS_S4 = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+#: The lambda grid of the bound (s^4): the predictive law's sweep widened by a decade each way
+#: (the laws' fronts reach a_rms that only those lambdas' optima cover).
+DEFAULT_LAMBDAS_S4 = (0.0003, 0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
 #: Warm starts per lambda: this many of the laws' runs with the lowest J(lambda) (distinct laws),
 #: plus the optimum at the previous lambda.
 WARM_LAWS = 2
