@@ -9,6 +9,7 @@ BENCH_MODULES = (
     "companion.bench.perf",
     "companion.bench.tracking",
     "companion.bench.sitl",
+    "companion.bench.bound",
 )
 
 
