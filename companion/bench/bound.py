@@ -21,6 +21,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -35,52 +36,37 @@ DEFAULT_LAMBDAS_S4 = (0.0003, 0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0
 WARM_LAWS = 2
 
 
-def law_run(scenario_name: str, model: Any, law: str, setting: float) -> Any:
-    """One law's simulated run on a tracking-bench scenario (its ``SimResult``), as the bench flies it."""
-    from companion.bench.tracking import SPEED_M_S, RATE_HZ, _CommonEnd, build_scenario, make_law
-    from companion.guidance.types import GuidanceParams, VehicleState
-    from companion.sim.simulator import simulate
+def law_run(spec: Any, law: str, setting: float) -> Any:
+    """One law's simulated run on a scenario in the lag model (its ``SimResult``), as the tracking
+    bench flies it (:func:`companion.bench.tracking.fly_task`)."""
+    from companion.bench.tracking import ModelSpec, Task, fly_task
 
-    sc = build_scenario(scenario_name)
-    if sc is None:
-        raise CompanionError(f"bench bound: scenario {scenario_name!r}: its mission file is missing")
-    path = sc.path
-    start = VehicleState(sc.x_m, sc.y_m, sc.heading_rad, SPEED_M_S)
-    t_max = None
-    if path.closed:
-        sx, sy = path.start_xy_m
-        t_max = (math.hypot(sc.x_m - sx, sc.y_m - sy) + path.length_m) / SPEED_M_S + 10.0
-    guidance = _CommonEnd(make_law(law, setting, sc, model), path)
-    return simulate(path, guidance, start, GuidanceParams(speed_m_s=SPEED_M_S, rate_hz=RATE_HZ),
-                    model=model.sim_model(), t_max_s=t_max)
+    return fly_task(Task(spec, ModelSpec("lag"), law, setting))[1]
 
 
-def bound_scenario(scenario_name: str, *, wind_enu_m_s: tuple[float, float] = (0.0, 0.0),
-                   lambdas_s4: Sequence[float] = DEFAULT_LAMBDAS_S4, laws: Sequence[str] | None = None,
-                   settings: dict[str, tuple[float, ...]] | None = None,
+def bound_scenario(spec: Any, *, lambdas_s4: Sequence[float] = DEFAULT_LAMBDAS_S4,
+                   laws: Sequence[str] | None = None, quick: bool = False,
                    progress: Any = None) -> dict[str, Any]:
-    """The bound and every run's gap on one scenario in the lag model (one JSON-ready dict)."""
-    from companion.bench.tracking import FULL_SETTINGS, LAW_ORDER, RATE_HZ, SPEED_M_S, ModelSpec, build_scenario
+    """The bound and every run's gap on one scenario (a :class:`~companion.bench.scenarios.ScenarioSpec`)
+    in the lag model (its own lag, limit and wind), as one JSON-ready dict. The laws are flown at
+    the tracking bench's settings for the scenario (``settings_for``; ``quick``: the short sweep)."""
+    from companion.bench.scenarios import build_path
+    from companion.bench.tracking import LAW_ORDER, RATE_HZ, ModelSpec, settings_for
     from companion.guidance.types import VehicleState
     from companion.sim.optimal import BoundFront, OptimalProblem, gap_pct, solve_optimal, whole_flight_metrics
 
-    model = ModelSpec("lag", wind_enu_m_s)
     laws = list(laws or LAW_ORDER)
-    settings = settings or FULL_SETTINGS
-    sc = build_scenario(scenario_name)
-    if sc is None:
-        raise CompanionError(f"bench bound: scenario {scenario_name!r}: its mission file is missing")
     runs = []
     for law in laws:
-        for setting in settings[law]:
-            res = law_run(scenario_name, model, law, setting)
+        for setting in settings_for(law, spec, quick):
+            res = law_run(spec, law, setting)
             runs.append({"law": law, "setting": setting, "a_cmd": np.asarray(res.a_cmd_m_s2, dtype=float)})
             if progress:
                 progress(f"flew {law} {setting:g}")
     n_ticks = min(r["a_cmd"].size for r in runs)
-    start = VehicleState(sc.x_m, sc.y_m, sc.heading_rad, SPEED_M_S)
-    problem = OptimalProblem.build(sc.path, start, rate_hz=RATE_HZ, horizon_s=n_ticks / RATE_HZ,
-                                   model=model.sim_model())
+    start = VehicleState(spec.x_m, spec.y_m, spec.heading_rad, spec.speed_m_s)
+    problem = OptimalProblem.build(build_path(spec), start, rate_hz=RATE_HZ, horizon_s=n_ticks / RATE_HZ,
+                                   model=ModelSpec("lag").sim_model(spec))
     rows = []
     for r in runs:
         m = whole_flight_metrics(problem, r["a_cmd"])
@@ -116,7 +102,7 @@ def bound_scenario(scenario_name: str, *, wind_enu_m_s: tuple[float, float] = (0
         # bound still holds but is loose (the nearest lambda's line), and the gap an upper estimate.
         row["in_range"] = a_lo <= row["a_rms_m_s2"] <= a_hi
     return {
-        "scenario": scenario_name, "model": "lag", "wind_enu_m_s": list(wind_enu_m_s),
+        "scenario": spec.name, "model": "lag", "wind_enu_m_s": list(spec.wind_enu_m_s),
         "horizon_s": problem.horizon_s, "ticks": problem.n_ticks,
         "bound": [{"lambda_s4": s.lambda_s4, "cost_m2": s.cost, "d_rms_m": s.d_rms_m, "a_rms_m_s2": s.a_rms_m_s2,
                    "a_max_m_s2": float(np.max(np.abs(s.a_cmd_m_s2))), "solve_s": t,
@@ -161,7 +147,12 @@ def register(subparsers: Any) -> None:
         description="Fly every law of the tracking bench on one scenario in the lag model, solve the "
                     "offline optimum of mean(d^2 + lambda a^2) at a grid of lambda, and report each run's "
                     "percent of d_rms above the lower-bound front at its a_rms (whole-flight figures).")
-    parser.add_argument("--scenario", required=True, metavar="NAME", help="a tracking-bench scenario")
+    which = parser.add_mutually_exclusive_group(required=True)
+    which.add_argument("--scenario", metavar="NAME", help="a named tracking-bench scenario")
+    which.add_argument("--mission", metavar="FILE", help="a mission file (its start, speed and vehicle: block)")
+    which.add_argument("--random-seed", type=int, metavar="S",
+                       help="the random scenario of that seed (as bench tracking --random 1 --seed S)")
+    parser.add_argument("--quick", action="store_true", help="the laws at the short sweep (two settings each)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--law", action="append", metavar="LAW", choices=LAW_ORDER, help="only these laws (repeatable)")
     parser.add_argument("--lambda", dest="lambdas", action="append", type=float, metavar="S4",
@@ -171,27 +162,41 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: Any) -> int:
-    from companion.bench.tracking import _finite, parse_wind, scenario_names
+    from companion.bench.scenarios import random_spec
+    from companion.bench.campaign import finite_json
+    from companion.bench.tracking import mission_specs, named_spec, parse_wind, scenario_names
 
-    if args.scenario not in scenario_names():
-        raise CompanionError(f"bench bound: --scenario: unknown {args.scenario!r}; expected one of "
-                             f"{', '.join(scenario_names())}")
+    if args.scenario is not None:
+        if args.scenario not in scenario_names():
+            raise CompanionError(f"bench bound: --scenario: unknown {args.scenario!r}; expected one of "
+                                 f"{', '.join(scenario_names())}")
+        spec = named_spec(args.scenario)
+        if spec is None:
+            raise CompanionError(f"bench bound: scenario {args.scenario!r}: its mission file is missing")
+    elif args.mission is not None:
+        spec = mission_specs([args.mission])[0]
+    else:
+        if args.random_seed < 0:
+            raise CompanionError(f"bench bound: --random-seed: expected an integer >= 0, got {args.random_seed}")
+        if args.wind:
+            raise CompanionError("bench bound: --wind: a random scenario draws its own wind")
+        spec = random_spec(args.random_seed)
+    if args.wind:
+        spec = replace(spec, wind_enu_m_s=parse_wind(args.wind))
     lambdas = args.lambdas or list(DEFAULT_LAMBDAS_S4)
     if not all(math.isfinite(x) and x >= 0 for x in lambdas):
         raise CompanionError(f"bench bound: --lambda: expected finite numbers >= 0, got {lambdas!r}")
-    wind = parse_wind(args.wind)
     t0 = time.perf_counter()
 
     def progress(text: str) -> None:
         if not args.json and sys.stderr.isatty():
             print(text, file=sys.stderr, flush=True)
 
-    result = bound_scenario(args.scenario, wind_enu_m_s=wind, lambdas_s4=lambdas, laws=args.law, progress=progress)
+    result = bound_scenario(spec, lambdas_s4=lambdas, laws=args.law, quick=args.quick, progress=progress)
     result["wall_s"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(_finite(result), allow_nan=False))
+        print(json.dumps(finite_json(result), allow_nan=False))
     else:
         print(render(result))
         print(f"\n{len(result['rows'])} runs and {len(result['bound'])} solves in {result['wall_s']:.1f} s")
     return 0
-

@@ -243,14 +243,16 @@ def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
     return d
 
 
-def run_one(task: Task) -> dict:
-    """Simulate one (scenario, model, law, setting) and measure it; returns one row."""
+def fly_task(task: Task):
+    """Fly one run as the bench flies it: the path and the simulated flight (``SimResult``).
+
+    Every law ends at the same place (:class:`_CommonEnd`); a closed path is flown for the approach
+    plus one lap. ``companion bench bound`` flies its runs through here too.
+    """
     from companion.guidance.types import GuidanceParams, VehicleState
-    from companion.sim.metrics import tracking_metrics
     from companion.sim.simulator import simulate
 
-    sc, model, law, setting = task.spec, task.model, task.law, task.setting
-    scenario_name = sc.name
+    sc = task.spec
     path = build_path(sc)
     start = VehicleState(sc.x_m, sc.y_m, sc.heading_rad, sc.speed_m_s)
     if path.closed:
@@ -258,10 +260,19 @@ def run_one(task: Task) -> dict:
         t_max = (math.hypot(sc.x_m - sx, sc.y_m - sy) + path.length_m) / sc.speed_m_s + 10.0
     else:
         t_max = None
+    guidance = _CommonEnd(make_law(task.law, task.setting, sc, task.model), path)
+    return path, simulate(path, guidance, start, GuidanceParams(speed_m_s=sc.speed_m_s, rate_hz=RATE_HZ),
+                          model=task.model.sim_model(sc), t_max_s=t_max)
+
+
+def run_one(task: Task) -> dict:
+    """Simulate one (scenario, model, law, setting) and measure it; returns one row."""
+    from companion.sim.metrics import tracking_metrics
+
+    model, law, setting = task.model, task.law, task.setting
+    scenario_name = task.spec.name
     t0 = time.perf_counter()
-    guidance = _CommonEnd(make_law(law, setting, sc, model), path)
-    res = simulate(path, guidance, start, GuidanceParams(speed_m_s=sc.speed_m_s, rate_hz=RATE_HZ),
-                   model=model.sim_model(sc), t_max_s=t_max)
+    path, res = fly_task(task)
     wall = time.perf_counter() - t0
     d = true_crosstrack_m(path, res.x_m, res.y_m)
     reached = np.flatnonzero(np.abs(d) <= REACH_TOL_M)

@@ -40,3 +40,20 @@ def test_negative_lambda_is_a_one_line_error(capsys):
     assert main(["bench", "bound", "--scenario", "s_turn", "--lambda", "-1"]) == 2
     err = capsys.readouterr().err
     assert "--lambda" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_random_scenario_is_bounded_and_named_by_its_seed(capsys):
+    # The random scenario of a seed (bench tracking --random 1 --seed S) through the same path:
+    # its own speed, lag, limit and wind; every run on or above the front.
+    from companion.bench.scenarios import random_spec
+
+    spec = random_spec(1003)
+    assert main(["bench", "bound", "--random-seed", "1003", "--law", "npfg", "--quick", "--lambda", "0.3",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["scenario"] == spec.name
+    assert doc["wind_enu_m_s"] == list(spec.wind_enu_m_s)
+    assert len(doc["rows"]) == 2
+    for r in doc["rows"]:
+        assert r["a_max_m_s2"] <= spec.a_max_m_s2 + 1e-9
+        assert r["d_rms_m"] >= r["bound_d_rms_m"] - 1e-12

@@ -18,7 +18,6 @@ import pytest
 
 from companion.geometry.paths import function_path, waypoint_path
 from companion.guidance.baselines import ApL1Params, NpfgParams
-from companion.guidance.baselines.npfg import track_error_bound_m
 from companion.guidance.capture import capture_command_m_s2, capture_side
 from companion.guidance.factory import make_law
 from companion.guidance.predictive import PredictiveParams
