@@ -481,8 +481,8 @@ def settings_for(law: str, spec: ScenarioSpec, quick: bool) -> tuple[float, ...]
     return base
 
 
-def build_tasks(specs: list[ScenarioSpec], laws, quick: bool) -> list[Task]:
-    return [Task(spec, model, law, setting) for spec in specs for model in MODELS for law in laws
+def build_tasks(specs: list[ScenarioSpec], laws, quick: bool, models=MODELS) -> list[Task]:
+    return [Task(spec, model, law, setting) for spec in specs for model in models for law in laws
             for setting in settings_for(law, spec, quick)]
 
 
@@ -578,6 +578,8 @@ def register(subparsers) -> None:
     parser.add_argument("--random", type=int, metavar="N", help="N seeded random scenarios (seeds S .. S+N-1)")
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="first seed of --random (default 0)")
     parser.add_argument("--law", action="append", metavar="LAW", choices=LAW_ORDER, help="only these laws (repeatable)")
+    parser.add_argument("--model", action="append", choices=[m.name for m in MODELS],
+                        help="only this vehicle model (repeatable; default ideal and lag)")
     parser.add_argument("--wind", metavar="EAST,NORTH", help="steady wind of the lag model, m/s (known to npfg and predictive)")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes (default 2)")
     parser.add_argument("--dask", action="store_true", help="run every run as a Dask task (needs companion[campaign])")
@@ -591,7 +593,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     specs, missing = select_specs(args)
     laws = args.law or list(LAW_ORDER)
-    tasks = build_tasks(specs, laws, args.quick)
+    models = [m for m in MODELS if m.name in args.model] if args.model else MODELS
+    tasks = build_tasks(specs, laws, args.quick, models)
     executor = choose_executor(args)
     t0 = time.perf_counter()
     progress = _Progress()
