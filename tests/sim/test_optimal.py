@@ -13,7 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from companion.bench.tracking import Scenario, ModelSpec, make_law
+from companion.bench.scenarios import ScenarioSpec, function_mission_text
+from companion.bench.tracking import ModelSpec, make_law
 from companion.geometry.paths import function_path, waypoint_path
 from companion.guidance.types import GuidanceOutput, GuidanceParams, VehicleState
 from companion.sim.optimal import (BoundFront, OptimalProblem, _crosstrack_newton, bound_d_rms,
@@ -135,7 +136,9 @@ def test_on_the_line_with_a_heading_error_the_optimum_beats_every_causal_law_and
     # No law's commands as a warm start: the optimiser must find its way alone.
     sols = [solve_optimal(problem, lam) for lam in lambdas]
     front = BoundFront.from_solutions(sols)
-    sc = Scenario("line", LINE, 0.0, 0.0, heading)
+    # The bench's lag model is LAG (0.3 s, 5 m/s^2): the laws that know the model are told that one.
+    sc = ScenarioSpec("line", function_mission_text("line", "0*x", (-20.0, 400.0)), 0.0, 0.0, heading,
+                      speed_m_s=V_M_S, lag_s=LAG.tau_s, a_max_m_s2=LAG.a_max_m_s2)
     for law, setting in LAWS:
         res = simulate(LINE, make_law(law, setting, sc, ModelSpec("lag")), start,
                        GuidanceParams(speed_m_s=V_M_S, rate_hz=RATE_HZ), model=LAG, t_max_s=horizon)
