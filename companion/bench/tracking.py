@@ -231,16 +231,11 @@ def make_law(law: str, setting: float, sc: ScenarioSpec, model: ModelSpec):
 
 # ----------------------------------------------------------------------------- one run
 def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
-    """Signed distance to the closest path point along a trajectory (projection kept continuous)."""
-    from companion.guidance.path_frame import path_frame
+    """Signed distance to the closest path point along a trajectory (projection kept continuous):
+    :func:`companion.sim.optimal.crosstrack_sequential_m`, the one measurement the bound uses too."""
+    from companion.sim.optimal import crosstrack_sequential_m
 
-    d = np.empty(x_m.size)
-    s = None
-    for i in range(x_m.size):
-        f = path_frame(path, float(x_m[i]), float(y_m[i]), s)
-        s = f.s_m
-        d[i] = f.crosstrack_m
-    return d
+    return crosstrack_sequential_m(path, x_m, y_m)[0]
 
 
 def fly_task(task: Task):
