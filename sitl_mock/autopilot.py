@@ -130,6 +130,9 @@ class MockAutopilot:
         self.origin = config.origin or DEFAULT_ORIGIN[config.autopilot]
         self.counters = RxCounters()
         self.stop_event = threading.Event()
+        # Set by signal handlers: a plain bool, because Event.set() takes a lock, and a second signal
+        # arriving while the first handler holds it would deadlock the main thread on itself.
+        self.stop_requested = False
         self.dt_s = 1.0 / config.physics_hz
         self.sim_t_s = 0.0
         self.steps = 0
@@ -648,7 +651,7 @@ class MockAutopilot:
         self._wall0 = wall0
         last_flush = wall0
         try:
-            while not self.stop_event.is_set():
+            while not (self.stop_requested or self.stop_event.is_set()):
                 now = time.monotonic()
                 due = int((now - wall0) / wall_per_step) - self.steps
                 if due > 0 and self._client_lagging(now):
@@ -691,6 +694,10 @@ class MockAutopilot:
         finally:
             self.close()
         return 0
+
+    def request_stop(self, signum: int = 0, frame: object = None) -> None:  # noqa: ARG002 - handler signature
+        """Stop the run loop; safe as a signal handler (takes no lock, may be re-entered)."""
+        self.stop_requested = True
 
     def summary(self) -> str:
         """One line of run statistics: simulated time, messages, drops by reason."""

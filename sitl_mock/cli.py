@@ -178,10 +178,8 @@ def main(argv: list[str] | None = None, stop_event: threading.Event | None = Non
     if stop_event is not None:
         mock.stop_event = stop_event
     if threading.current_thread() is threading.main_thread():
-        def _stop(signum, frame):  # noqa: ARG001 - signal handler signature
-            mock.stop_event.set()
-        signal.signal(signal.SIGINT, _stop)
-        signal.signal(signal.SIGTERM, _stop)
+        signal.signal(signal.SIGINT, mock.request_stop)
+        signal.signal(signal.SIGTERM, mock.request_stop)
     mock.announce()
     try:
         code = mock.run()

@@ -430,4 +430,7 @@ class _flight_interpreter:
 
 
 def _raise_terminate(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - signal handler signature
+    # A supervisor's second SIGTERM must not interrupt the clean-up (tlog flush, summary) the first
+    # started; run() puts the previous handler back when it is done.
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     raise _Terminate()

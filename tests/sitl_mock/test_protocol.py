@@ -354,3 +354,26 @@ def test_every_sitl_mock_option_has_help_text():
     missing = [a.option_strings[0] for a in build_parser()._actions
                if a.option_strings and not (a.help or "").strip()]
     assert missing == []
+
+
+def test_a_second_signal_inside_the_stop_handler_cannot_deadlock_the_mock():
+    # Two signals in quick succession (SIGINT, then the SIGTERM of a supervisor) run the handler inside
+    # itself. A handler that takes a lock (Event.set) then waits for the lock its own interrupted call
+    # holds, forever. Here the interrupted call is played by this thread holding the event's lock.
+    import threading
+
+    from sitl_mock.autopilot import MockAutopilot
+    from sitl_mock.cli import build_parser, config_from_args
+
+    mock = MockAutopilot(config_from_args(build_parser().parse_args(["--link", "udpin:127.0.0.1:0", "--quiet"])))
+    try:
+        with mock.stop_event._cond:
+            second = threading.Thread(target=mock.request_stop, args=(signal.SIGTERM, None), daemon=True)
+            second.start()
+            second.join(timeout=5.0)
+            assert not second.is_alive(), "the stop handler blocked on a lock"
+        started = time.monotonic()
+        assert mock.run() == 0  # stop already requested: returns at once
+        assert time.monotonic() - started < 5.0
+    finally:
+        mock.close()
