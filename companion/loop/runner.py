@@ -307,7 +307,7 @@ class FlightRunner:
         return MonotonicClock(idle=lambda dt: (s.idle(), s.link.poll(min(dt, 0.02))))
 
     def _prepare(self) -> tuple[LinkSession, AutopilotProfile, TickConfig, Clock, GuidanceLaw]:
-        """Steps 1-5: link, streams, placement, position, start distance, mode, arming, climb."""
+        """Steps 1-5: link, streams, placement, position, start distance, the guidance and the clock."""
         s = self._open()
         config = self._tick_config(s)
         self._request_streams(s)
@@ -319,13 +319,16 @@ class FlightRunner:
         guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
         profile = profile_for(s.link.info, s)
         clock = self._clock(s)
+        return s, profile, config, clock, guidance
+
+    def _enter(self, s: LinkSession, profile: AutopilotProfile, config: TickConfig, clock: Clock) -> None:
+        """Step 6: the flight mode, arming and the climb; from here on the setpoints must not pause."""
         profile.enter(config, clock, self.mission.altitude_m)
         if config.output == "attitude":
             s.link.change_speed(self.mission.speed_m_s, wait_ack_s=1.0, retries=2, idle=s.idle)
         s.keepalive_config = None
         s.event(f"flying {self.mission.name} at {self.opt.rate_hz:g} Hz "
                 f"({config.output} setpoints, {self.opt.clock} clock)")
-        return s, profile, config, clock, guidance
 
     # ------------------------------------------------------------------ entry point
 
@@ -337,11 +340,15 @@ class FlightRunner:
             old_term = None  # not in the main thread: SIGTERM handling left to the caller
         try:
             s, profile, config, clock, guidance = self._prepare()
-            self.flight = FlightLoop(s, guidance, config, clock, profile.target_mode,
-                                     self.mission.path.start_heading_rad, self.tlog, self.record,
-                                     health=self._health_monitor(config),
-                                     path_length_m=self.mission.path.length_m)
+            # The interpreter is set up (a full collection, which can take a second on a busy
+            # machine) before the mode change, not after it: in OFFBOARD or GUIDED the setpoint
+            # stream must not pause (PX4 leaves OFFBOARD after COM_OF_LOSS_T without one).
             with _flight_interpreter():
+                self._enter(s, profile, config, clock)
+                self.flight = FlightLoop(s, guidance, config, clock, profile.target_mode,
+                                         self.mission.path.start_heading_rad, self.tlog, self.record,
+                                         health=self._health_monitor(config),
+                                         path_length_m=self.mission.path.length_m)
                 self.exit_reason = self.flight.run()
             if self.exit_reason == "finished":
                 profile.finish(self._on_finish_action())
