@@ -84,7 +84,11 @@ DEBUG_FIELDS = (
     "prev_course_rad",       # 24 the prev_course_rad this tick was given
     "t_s_residual",          # 25 t_s - float32(t_s): field 1 + field 25 restores the float64 t_s
     "setpoint_sent",         # 26 1 if this tick's setpoint went on the wire, 0 if it came too late
+    "debug_layout",          # 27 DEBUG_LAYOUT (NaN padding in logs written before this field)
+    "yaw_ned_rad",           # 28 the ATTITUDE yaw this tick was given (NaN for None)
 )
+#: Value of the ``debug_layout`` field: 2 from the layout that records the tick's yaw (field 28).
+DEBUG_LAYOUT = 2
 
 
 @dataclass(frozen=True)
@@ -144,6 +148,7 @@ class TickResult:
     course_cmd_rad: float = math.nan  # commanded course (carry as ``prev_course_cmd_rad``)
     prev_course_cmd_rad: float = math.nan  # the inputs carried from the previous tick (NaN: none)
     prev_course_rad: float = math.nan
+    yaw_ned_rad: float = math.nan  # the attitude yaw the tick was given (NaN: none)
 
     @property
     def phase_code(self) -> int:
@@ -242,7 +247,8 @@ def compute_tick(
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
     return _tick_result(tick=tick, t_s=t_s, phase=phase, hold_reason=hold_reason, state=state, output=output,
                         setpoint=setpoint, sample=sample, sample_age_s=sample_age_s, course_rad=course,
-                        course_cmd_rad=course_cmd, prev_course_cmd_rad=prev_cmd, prev_course_rad=prev_course_rad)
+                        course_cmd_rad=course_cmd, prev_course_cmd_rad=prev_cmd, prev_course_rad=prev_course_rad,
+                        yaw_ned_rad=math.nan if yaw_ned_rad is None else float(yaw_ned_rad))
 
 
 def _targets(config: TickConfig, s_m: float) -> tuple[float, object]:
@@ -354,6 +360,8 @@ def debug_row(result: TickResult) -> list[float]:
         "prev_course_rad": float(result.prev_course_rad),
         "t_s_residual": float(result.t_s) - _float32(result.t_s),
         "setpoint_sent": 1.0,
+        "debug_layout": float(DEBUG_LAYOUT),
+        "yaw_ned_rad": float(result.yaw_ned_rad),
     }
     if len(values) != len(DEBUG_FIELDS):
         raise AssertionError(f"debug_row: {sorted(set(values) ^ set(DEBUG_FIELDS))}")

@@ -35,7 +35,7 @@ from companion.io.state import GlobalOrigin, global_origin_from_wire
 from companion.io.link import MAV_AUTOPILOT_INVALID, MAV_PARAM_TYPE_REAL32
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
-from companion.loop.tick import DEBUG_FIELDS, PHASE_CODES
+from companion.loop.tick import DEBUG_FIELDS, DEBUG_LAYOUT, PHASE_CODES
 from companion.replay.progress import ByteProgress
 
 GUIDANCE_ARRAY_NAME = "guidance"
@@ -158,6 +158,16 @@ def _sample(msg) -> PositionSample | None:
     return PositionSample(t, x, y, z, vx, vy, vz)
 
 
+def _tick_yaw(row, newest_logged: float | None) -> float | None:
+    """The attitude yaw a tick was given: its own record's (``debug_layout`` >= 2; NaN: none), else,
+    in logs written before that field, the newest ``ATTITUDE.yaw`` before the record (which can
+    be one that arrived while the tick was computing)."""
+    if row[DEBUG_INDEX["debug_layout"]] >= DEBUG_LAYOUT:  # False for the NaN padding of older logs
+        yaw = float(row[DEBUG_INDEX["yaw_ned_rad"]])
+        return yaw if math.isfinite(yaw) else None
+    return newest_logged
+
+
 def _sample_from_debug(row: list[float], time_boot_ms: int) -> PositionSample | None:
     """Rebuild a lost sample from the recorded internals (position exact, velocity from course)."""
     x_enu, y_enu = row[DEBUG_INDEX["x_enu_m"]], row[DEBUG_INDEX["y_enu_m"]]
@@ -271,7 +281,7 @@ def read_flight(
                     time_unix_s=rec.time_s, tick=int(row[DEBUG_INDEX["tick"]]),
                     t_s=row[DEBUG_INDEX["t_s"]], sample=sample,
                     sample_age_s=row[DEBUG_INDEX["sample_age_s"]],
-                    yaw_ned_rad=newest_yaw.get(target), setpoint=None, debug=row,
+                    yaw_ned_rad=_tick_yaw(row, newest_yaw.get(target)), setpoint=None, debug=row,
                     sample_reconstructed=rebuilt)
                 companion_ticks.append(tick)
                 events.setdefault(sender, []).append((rec.time_s, tick, None))
