@@ -20,10 +20,12 @@ Checks (defaults in :class:`HealthOptions`; the operator's view and exit codes i
   path: beyond 25 m; approaching from 80 m away: beyond 25 m more than the closest approach, so an
   approach from far is not a failure). Half the bound -> ``warn``; the bound -> ``hold`` (the loop
   sends holds, the vehicle stops where it is); still beyond it ``xtrack_hold_s`` later -> ``stop``.
-  Back within the bound during the hold -> the flight resumes. In the mid-course phase the bound
-  is widened by one circle's diameter (:func:`midcourse_allowance_m`): the vehicle swings round an
-  initiation circle onto the path start, and a plane turning round towards the path first moves
-  away from it.
+  Back within the bound during the hold -> the flight resumes. In the mid-course phase, and in
+  any phase until the vehicle has first come within half the bound of the path, the bound is
+  widened by one turn's diameter (:func:`turn_allowance_m`): the vehicle swings round an
+  initiation circle onto the path start, and a vehicle that starts pointing away (a plane that
+  loitered before the flight began) turns round at its tightest radius towards the path, moving
+  up to that diameter farther from it first.
 Feeding it (the flight loop, once per guidance tick, after ``compute_tick``)::
 
     verdict = monitor.update(sample_from_tick(result, t_s, link.state.autopilot_time_s))
@@ -154,14 +156,15 @@ class HealthVerdict:
 _OK = HealthVerdict()
 
 
-def midcourse_allowance_m(circle_radius_m: float, speed_m_s: float,
-                          lat_accel_max_m_s2: float = math.inf) -> float:
-    """Cross-track growth expected in the mid-course phase: the diameter of the larger of the
-    initiation circle and the vehicle's tightest turn, ``2 max(R, v^2 / a_max)``.
+def turn_allowance_m(circle_radius_m: float, speed_m_s: float,
+                     lat_accel_max_m_s2: float = math.inf) -> float:
+    """Cross-track growth expected while the vehicle turns onto the path (the mid-course phase,
+    or a start pointing away): the diameter of the larger of the initiation circle and the
+    vehicle's tightest turn, ``2 max(R, v^2 / a_max)``.
 
-    >>> midcourse_allowance_m(10.0, 5.0)  # a copter on the paper's 10 m circle
+    >>> turn_allowance_m(10.0, 5.0)  # a copter on the paper's 10 m circle
     20.0
-    >>> round(midcourse_allowance_m(10.0, 18.0, 9.80665 * math.tan(math.radians(35.0))), 1)
+    >>> round(turn_allowance_m(10.0, 18.0, 9.80665 * math.tan(math.radians(35.0))), 1)
     94.4
     """
     turn_m = speed_m_s ** 2 / lat_accel_max_m_s2 if lat_accel_max_m_s2 > 0 else math.inf
@@ -200,19 +203,21 @@ class HealthMonitor:
     options : thresholds.
     speed_m_s : the mission speed (sets the progress expected).
     clock : ``"wall"`` or ``"autopilot"`` (the loop's clock; ``autopilot`` turns the clock check off).
-    midcourse_allowance_m : extra cross-track growth accepted in the mid-course phase, where the
-        vehicle swings round an initiation circle onto the path start; the flight loop passes
-        :func:`midcourse_allowance_m` of the mission.
+    turn_allowance_m : extra cross-track growth accepted while the vehicle turns onto the path:
+        in the mid-course phase (it swings round an initiation circle onto the path start) and,
+        in any phase, until it has first come within half the bound of the path (it may start
+        pointing away and turn round first); the flight loop passes :func:`turn_allowance_m` of
+        the mission and the vehicle.
     """
 
     def __init__(self, options: HealthOptions, speed_m_s: float, *, clock: str = "wall",
-                 midcourse_allowance_m: float = 0.0):
+                 turn_allowance_m: float = 0.0):
         if not (math.isfinite(speed_m_s) and speed_m_s > 0):
             raise ValueError(f"speed_m_s: expected a number > 0, got {speed_m_s!r}")
         self.opt = options
         self.speed_m_s = float(speed_m_s)
         self.clock = clock
-        self.midcourse_allowance_m = float(midcourse_allowance_m)
+        self.turn_allowance_m = float(turn_allowance_m)
         self._track: deque = deque()  # (t_s, x, y, s) of non-hold ticks since the last reset
         self._clock_track: deque = deque()  # (t_s, autopilot_time_s)
         self._best_xtrack_m = math.inf
@@ -271,7 +276,8 @@ class HealthMonitor:
             return _OK
         d = abs(s.crosstrack_m)
         self._best_xtrack_m = min(self._best_xtrack_m, d)
-        allowed = bound + (self.midcourse_allowance_m if s.phase == "midcourse" else 0.0)
+        turning_on = s.phase == "midcourse" or self._best_xtrack_m > 0.5 * bound  # not yet on the path
+        allowed = bound + (self.turn_allowance_m if turning_on else 0.0)
         excess = d - self._best_xtrack_m
         if excess <= allowed:
             self._xtrack_since_s = None

@@ -59,7 +59,7 @@ from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_besid
 from companion.loop.driver import make_guidance
 from companion.loop.limits import apply_autopilot_limits
 from companion.loop.flight import AutopilotClock, FlightLoop, FlightRecord
-from companion.loop.health import HealthMonitor, HealthOptions, midcourse_allowance_m
+from companion.loop.health import HealthMonitor, HealthOptions, turn_allowance_m
 from companion.loop.profiles import AutopilotProfile, profile_for
 from companion.loop.scheduler import Clock, MonotonicClock
 from companion.loop.session import LinkSession, Status, result_text
@@ -290,13 +290,14 @@ class FlightRunner:
         return config
 
     def _health_monitor(self, config: TickConfig) -> HealthMonitor:
-        """The flight-health checks of this flight: the mid-course bound widened by the initiation
-        circle, or for a fixed wing by its tightest turn at the bank limit."""
+        """The flight-health checks of this flight: the cross-track bound widened, while the vehicle
+        turns onto the path, by the initiation circle, or for a fixed wing by its tightest turn at
+        the bank limit if that is wider."""
         v = self.mission.speed_m_s
         a_max = (G_M_S2 * math.tan(math.radians(self.opt.max_bank_deg))
                  if config.output == "attitude" else math.inf)
-        allowance = midcourse_allowance_m(self.mission.guidance.circle_radius_m, v, a_max)
-        return HealthMonitor(self.opt.health, v, clock=self.opt.clock, midcourse_allowance_m=allowance)
+        allowance = turn_allowance_m(self.mission.guidance.circle_radius_m, v, a_max)
+        return HealthMonitor(self.opt.health, v, clock=self.opt.clock, turn_allowance_m=allowance)
 
     def _on_finish_action(self) -> str:
         return self.opt.on_finish or self.mission.on_finish

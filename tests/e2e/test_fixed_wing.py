@@ -27,11 +27,16 @@ on_finish: loiter
 """
 
 
-def test_plane_flies_the_path_with_bank_angle_setpoints(tmp_path):
+@pytest.mark.parametrize("start_yaw_deg", [90, 270])
+def test_plane_flies_the_path_with_bank_angle_setpoints(tmp_path, start_yaw_deg):
+    """From 22 m before the path start, pointing along it (90) or away from it (270: the plane
+    turns round at its tightest radius, 33 m, first moving that far beyond its closest approach;
+    a plane that loitered while the companion started can begin so, and that is no runaway)."""
     m = parse_mission(MISSION, "plane.yaml")
     port = free_udp_port()
     mock = MockProcess(["--autopilot", "px4", "--vehicle", "plane", "--link", f"udpout:127.0.0.1:{port}",
-                        "--speedup", "5", "--start-ned=-10,-20", "--start-alt-m", "50", "--start-yaw-deg=90",
+                        "--speedup", "5", "--start-ned=-10,-20", "--start-alt-m", "50",
+                        f"--start-yaw-deg={start_yaw_deg}",
                         "--start-airborne", "--quiet", "--offboard-loss-s", "5"])
     mock.start(timeout_s=60.0)
     opts = FlyOptions(connect=f"udpin:127.0.0.1:{port}", rate_hz=50.0, clock="autopilot",

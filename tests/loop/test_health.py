@@ -19,7 +19,7 @@ from companion.loop.health import (
     HealthMonitor,
     HealthOptions,
     HealthSample,
-    midcourse_allowance_m,
+    turn_allowance_m,
 )
 from companion.loop.scheduler import FakeClock, FixedRateScheduler
 
@@ -196,17 +196,70 @@ def test_far_start_is_measured_from_the_closest_approach():
 def test_midcourse_turn_allowance_lets_a_plane_turn_round():
     # A plane heading away first: 80 m -> 120 m (40 m growth) in the mid-course phase. With the
     # allowance 2 v^2 / a for 18 m/s and a = g tan 35 deg (6.87 m/s2): 94 m -> no hold.
-    allowance = midcourse_allowance_m(10.0, 18.0, 9.80665 * math.tan(math.radians(35.0)))
+    allowance = turn_allowance_m(10.0, 18.0, 9.80665 * math.tan(math.radians(35.0)))
     assert allowance == pytest.approx(2 * 18.0 ** 2 / 6.8668, abs=0.05) == pytest.approx(94.3, abs=0.1)
 
     def traj(t):
         d = 80.0 + 40.0 * math.sin(math.pi * t / 10.0)  # out to 120 m at t = 5, back by t = 10
         return HealthSample(t_s=t, x_enu_m=18.0 * t, y_enu_m=d, s_m=0.0, crosstrack_m=d, phase="midcourse")
-    with_allowance = fly(HealthMonitor(HealthOptions(), 18.0, midcourse_allowance_m=allowance), traj, 10.0)
+    with_allowance = fly(HealthMonitor(HealthOptions(), 18.0, turn_allowance_m=allowance), traj, 10.0)
     assert first(with_allowance, "hold") is None
     without = fly(HealthMonitor(HealthOptions(), 18.0), traj, 10.0)
     # 80 + 40 sin(pi t / 10) > 105 from t = 10/pi * asin(25/40) = 2.15 s: hold from 2.2 s.
     assert first(without, "hold") == pytest.approx(2.2)
+
+
+def plane_turning_round(d0_m: float, v_m_s: float, radius_m: float):
+    """A plane ``d0_m`` from a straight path (the x axis, vehicle above it), heading straight
+    away from it, turning round at its tightest radius ``R``, then flying back and along the
+    path (no mid-course phase: close range from the first tick). The centre of the turn is at
+    (R, d0), so the distance to the path is ``d0 + R sin(v t / R)`` during the half turn: out to
+    ``d0 + R`` at a quarter turn, back to ``d0`` after half a turn, then straight down at ``v``
+    to the path and along it."""
+    half_turn_s = math.pi * radius_m / v_m_s
+
+    def traj(t):
+        if t <= half_turn_s:
+            th = v_m_s * t / radius_m
+            x, d = radius_m * (1.0 - math.cos(th)), d0_m + radius_m * math.sin(th)
+        else:
+            d = max(0.0, d0_m - v_m_s * (t - half_turn_s))
+            x = 2.0 * radius_m + v_m_s * max(0.0, t - half_turn_s - d0_m / v_m_s)
+        return HealthSample(t_s=t, x_enu_m=x, y_enu_m=d, s_m=max(x, 0.0), crosstrack_m=d)
+    return traj
+
+
+def test_a_plane_turning_round_towards_the_path_before_reaching_it_is_no_runaway():
+    # The plane of the fixed-wing mission (15 m/s, 35 deg bank: R = 225 / 6.87 = 32.8 m), 22 m
+    # from the path and pointing away when the close-range law takes over: the turn round
+    # takes it 32.8 m beyond its closest approach (22 m), past the 25 m bound. That is the
+    # turn, not a runaway: until the vehicle has first come within half the bound (12.5 m) of
+    # the path the bound is widened by the tightest turn's diameter, 2 R = 65.5 m, in every
+    # phase, not only the mid-course one.
+    a_max = 9.80665 * math.tan(math.radians(35.0))
+    radius = 15.0 ** 2 / a_max
+    assert radius == pytest.approx(32.77, abs=0.01)
+    allowance = turn_allowance_m(0.0, 15.0, a_max)
+    assert allowance == pytest.approx(2 * radius)
+    traj = plane_turning_round(22.0, 15.0, radius)
+    assert max(traj(t).crosstrack_m for t in ticks(20.0)) == pytest.approx(22.0 + radius, abs=0.1)
+    out = fly(HealthMonitor(HealthOptions(), 15.0, turn_allowance_m=allowance), traj, 20.0)
+    assert {v.level for _, v in out} <= {"ok", "warn"}
+    # Without the allowance: beyond 22 + 25 = 47 m from sin(th) > 25 / R, th = 0.8676 rad at
+    # t = th R / v = 1.8955 s: hold from the next tick, 1.9 s.
+    out = fly(HealthMonitor(HealthOptions(), 15.0), traj, 20.0)
+    assert first(out, "hold") == pytest.approx(1.9)
+
+
+def test_once_on_the_path_the_turn_allowance_no_longer_applies():
+    # Flying along the path, then drifting away at 5 m/s from t = 2 s (a runaway): having been
+    # on the path, the bound is 25 m whatever the allowance, so hold from 7.1 s as without one.
+    def traj(t):
+        d = 0.0 if t <= 2.0 else 5.0 * (t - 2.0)
+        return HealthSample(t_s=t, x_enu_m=15.0 * t, y_enu_m=d, s_m=15.0 * t, crosstrack_m=d)
+    out = fly(HealthMonitor(HealthOptions(), 15.0, turn_allowance_m=65.5), traj, 12.0)
+    assert first(out, "hold") == pytest.approx(7.1)
+    assert first(out, "stop") == pytest.approx(10.1)
 
 
 # ------------------------------------------------------------------ clock mismatch
@@ -363,7 +416,7 @@ def test_healthy_simulated_flights_of_the_gallery_raise_nothing(mission):
     r = simulate(p, TwoPhaseGuidance(p, m.guidance), start, m.guidance, model=LagModel(0.3, 5.0),
                  keep_outputs=True)
     mon = HealthMonitor(HealthOptions(), m.speed_m_s,
-                        midcourse_allowance_m=midcourse_allowance_m(m.guidance.circle_radius_m, m.speed_m_s))
+                        turn_allowance_m=turn_allowance_m(m.guidance.circle_radius_m, m.speed_m_s))
     levels = set()
     for i, t in enumerate(r.t_s):
         o = r.outputs[i]
