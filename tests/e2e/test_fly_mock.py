@@ -186,7 +186,9 @@ def test_pilot_mode_change_stops_the_companion(tmp_path):
     first_loiter = next(i for i, mode in hb if mode == 5 and i > first_guided)
     after = [x for x in msgs[first_loiter:] if x.get_type() == "SET_POSITION_TARGET_LOCAL_NED"]
     assert after == []
-    guided_requests = [x for x in msgs if x.get_type() == "COMMAND_LONG" and x.command == 176
+    guided_requests = [i for i, x in enumerate(msgs) if x.get_type() == "COMMAND_LONG" and x.command == 176
                        and int(x.param2) == 4]
-    assert len(guided_requests) == 1  # never switched back
+    # Asked for GUIDED before the flight (more than once only if an ACK came late: a retry on a
+    # loaded machine), never after the pilot's LOITER: no switching back.
+    assert guided_requests and max(guided_requests) < first_loiter
     assert any(x.get_type() == "SET_POSITION_TARGET_LOCAL_NED" for x in msgs[first_guided:first_loiter])
