@@ -20,7 +20,8 @@ from sitl_mock.vehicle import VehicleParams
 
 # Keys of the vehicle: block a model must give (the others default as in a mission).
 _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
-_MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "speed_sag_s": 0.0, "yaw_rate_max_deg_s": 90.0}
+_MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
+                   "yaw_rate_max_deg_s": 90.0}
 
 
 def load_vehicle_model(path: str) -> dict[str, float]:
@@ -131,7 +132,7 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
         model = Personality(args.autopilot, args.vehicle).default_vehicle_model
     if model is None:  # plane, rover: the generic model
         model = {"a_max_m_s2": 3.0 if args.vehicle == "rover" else 5.0, "lag_s": 0.3, "delay_s": 0.0,
-                 "accel_lag_s": 0.0, "speed_sag_s": 0.0,
+                 "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
                  "yaw_rate_max_deg_s": 120.0 if args.vehicle == "rover" else 90.0}
     # An explicit option overrides the model's value.
     a_max = args.a_max_m_s2 if args.a_max_m_s2 is not None else model["a_max_m_s2"]
@@ -140,7 +141,8 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
     try:
         vehicle = VehicleParams(
             kind=args.vehicle, tau_vel_s=tau_vel, tau_yaw_rate_s=args.tau_yaw_rate_s, a_max_m_s2=a_max,
-            delay_s=model["delay_s"], accel_lag_s=model["accel_lag_s"], speed_sag_s=model["speed_sag_s"],
+            delay_s=model["delay_s"], accel_lag_s=model["accel_lag_s"], tail_share=model["tail_share"],
+            tail_tc_s=model["tail_tc_s"], speed_sag_s=model["speed_sag_s"],
             yaw_rate_max_rad_s=math.radians(yaw_max), v_max_m_s=5.0 if args.vehicle == "rover" else 12.0,
             airspeed_cruise_m_s=args.airspeed_m_s, airspeed_min_m_s=args.airspeed_min_m_s,
             airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,

@@ -89,12 +89,13 @@ ARDUPILOT_STREAM_GROUPS = {
 # ArduCopter SITL (ArduPilot master, default parameters, GUIDED) and PX4 v1.18 SIH (OFFBOARD). The
 # keys are those of the ``vehicle:`` block (``--vehicle-model``). PX4's yaw rate never saturated
 # in its flight: 92 deg/s is the most it was asked for and flew, a lower bound of its limit.
-VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "speed_sag_s", "yaw_rate_max_deg_s")
+VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
+                      "yaw_rate_max_deg_s")
 IDENTIFIED_COPTER_MODELS = {
-    "ardupilot": {"a_max_m_s2": 2.43, "delay_s": 0.173, "lag_s": 0.457, "accel_lag_s": 0.0, "speed_sag_s": 0.049,
-                  "yaw_rate_max_deg_s": 60.6},
-    "px4": {"a_max_m_s2": 4.46, "delay_s": 0.049, "lag_s": 0.602, "accel_lag_s": 0.0, "speed_sag_s": 0.258,
-            "yaw_rate_max_deg_s": 92.3},
+    "ardupilot": {"a_max_m_s2": 2.43, "delay_s": 0.173, "lag_s": 0.457, "accel_lag_s": 0.0, "tail_share": 0.0,
+                  "tail_tc_s": 1.0, "speed_sag_s": 0.049, "yaw_rate_max_deg_s": 60.6},
+    "px4": {"a_max_m_s2": 4.46, "delay_s": 0.049, "lag_s": 0.602, "accel_lag_s": 0.0, "tail_share": 0.0,
+            "tail_tc_s": 1.0, "speed_sag_s": 0.258, "yaw_rate_max_deg_s": 92.3},
 }
 
 

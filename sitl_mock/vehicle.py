@@ -76,6 +76,10 @@ class VehicleParams:
         Copter, rover: dead time between a command and the inner loop acting on it.
     accel_lag_s : float
         Copter, rover: time constant of a second lag on the horizontal acceleration (0: none).
+    tail_share, tail_tc_s : float
+        Copter, rover: the slow tail of the velocity response: the loop asks for
+        ``(e - tail_share * f) / tau_vel_s``, ``f`` the horizontal velocity error ``e`` through a
+        low-pass of time constant ``tail_tc_s`` (0 <= share <= 0.95; 0: none).
     speed_sag_s : float
         Copter, rover: the horizontal speed command shrinks by this times the lateral acceleration
         (m/s per m/s^2), as real position controllers slow down in turns.
@@ -103,6 +107,8 @@ class VehicleParams:
     a_max_m_s2: float = 5.0
     delay_s: float = 0.0
     accel_lag_s: float = 0.0
+    tail_share: float = 0.0
+    tail_tc_s: float = 1.0
     speed_sag_s: float = 0.0
     yaw_rate_max_rad_s: float = math.radians(90.0)
     v_max_m_s: float = 12.0
@@ -121,7 +127,7 @@ class VehicleParams:
         if self.kind not in VEHICLE_KINDS:
             raise ValueError(f"vehicle kind: expected one of {', '.join(VEHICLE_KINDS)}, got {self.kind!r}")
         positive = ("a_max_m_s2", "yaw_rate_max_rad_s", "v_max_m_s", "climb_rate_m_s", "descent_rate_m_s",
-                    "airspeed_min_m_s", "roll_max_rad")
+                    "airspeed_min_m_s", "roll_max_rad", "tail_tc_s")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
@@ -131,6 +137,8 @@ class VehicleParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+        if not 0.0 <= self.tail_share <= 0.95:
+            raise ValueError(f"tail_share: expected a number in [0, 0.95], got {self.tail_share!r}")
         if not self.airspeed_min_m_s <= self.airspeed_cruise_m_s <= self.airspeed_max_m_s:
             raise ValueError("airspeed: expected airspeed_min_m_s <= airspeed_cruise_m_s <= airspeed_max_m_s")
         if self.roll_max_rad >= math.radians(80.0):
@@ -190,6 +198,7 @@ class VehicleModel:
             self._set_plane_ground_velocity(0.0)
         self._rng = random.Random(params.seed)
         self._cmd_queue: deque = deque()
+        self._tail_ne_m_s = (0.0, 0.0)  # the low-passed horizontal velocity error of the slow tail
         self._noise_ned_m = (0.0, 0.0, 0.0)
 
     def _delayed(self, vel_cmd_ned_m_s, yaw_rate_cmd_rad_s):
@@ -248,8 +257,15 @@ class VehicleModel:
                 a_lat = abs(v[0] * s.acc_ned_m_s2[1] - v[1] * s.acc_ned_m_s2[0]) / speed
                 scale = max(0.0, 1.0 - p.speed_sag_s * a_lat / c_h)
                 cx, cy = cx * scale, cy * scale
-        dvx = (cx - v[0]) * k + acc_ff_ned_m_s2[0] * dt_s
-        dvy = (cy - v[1]) * k + acc_ff_ned_m_s2[1] * dt_s
+        ex, ey = cx - v[0], cy - v[1]
+        if p.tail_share > 0.0:
+            # Slow tail: a low-passed share of the error is taken back from what the loop asks for.
+            fx, fy = self._tail_ne_m_s
+            self._tail_ne_m_s = (fx + (ex - fx) * _lag_gain(dt_s, p.tail_tc_s),
+                                 fy + (ey - fy) * _lag_gain(dt_s, p.tail_tc_s))
+            ex, ey = ex - p.tail_share * fx, ey - p.tail_share * fy
+        dvx = ex * k + acc_ff_ned_m_s2[0] * dt_s
+        dvy = ey * k + acc_ff_ned_m_s2[1] * dt_s
         dvz = 0.0 if p.kind == "rover" else (vel_cmd_ned_m_s[2] - v[2]) * k + acc_ff_ned_m_s2[2] * dt_s
         dv_max = p.a_max_m_s2 * dt_s
         dv_h = math.hypot(dvx, dvy)

@@ -17,7 +17,8 @@ from pathlib import Path
 from companion.errors import CompanionError, LogError
 from companion.guidance.types import VEHICLE_MODEL_KEYS
 
-_DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "speed_sag_s": 3,
+_DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "tail_share": 3, "tail_tc_s": 3,
+             "speed_sag_s": 3,
              "yaw_rate_max_deg_s": 1}
 
 
@@ -70,7 +71,7 @@ def run(args) -> int:
     else:
         values = result.model.as_dict()
         print(f"{path.name}: {q['duration_s']:.0f} s of flight under velocity setpoints, "
-              f"model order {q['model_order']}")
+              f"model: {q['model_structure']}")
         for key in VEHICLE_MODEL_KEYS:
             se = result.std_errors.get(key)
             se_text = f" +- {se:.3g}" if se is not None and key != "yaw_rate_max_deg_s" else ""

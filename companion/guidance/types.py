@@ -119,8 +119,11 @@ class GuidanceParams:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
 
 
+#: Largest ``tail_share`` of a vehicle model (a share of 1 would leave no steady gain).
+MAX_TAIL_SHARE = 0.95
 #: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
-VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "speed_sag_s", "yaw_rate_max_deg_s")
+VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
+                      "yaw_rate_max_deg_s")
 
 
 @dataclass(frozen=True)
@@ -141,6 +144,11 @@ class VehicleModel:
     lag_s : time constant of the first-order velocity response, >= 0.
     accel_lag_s : time constant of a second lag, on the acceleration the velocity loop asks for
         (0: the first-order model), >= 0.
+    tail_share, tail_tc_s : a slow tail of the velocity response: the velocity loop asks for
+        ``(e - tail_share * f) / lag_s``, ``e`` the velocity error and ``f`` that error through a
+        first-order low-pass of time constant ``tail_tc_s``. The error is first closed at
+        ``1 / lag_s``, then at ``(1 - tail_share) / lag_s`` (PX4's velocity loop in OFFBOARD;
+        0: no tail). ``0 <= tail_share <= 0.95``, ``tail_tc_s > 0``.
     speed_sag_s : speed lost per unit of lateral acceleration in a turn (m/s per m/s^2), >= 0.
     yaw_rate_max_deg_s : yaw-rate limit, > 0.
     """
@@ -149,6 +157,8 @@ class VehicleModel:
     delay_s: float = 0.0
     lag_s: float = 0.3
     accel_lag_s: float = 0.0
+    tail_share: float = 0.0
+    tail_tc_s: float = 1.0
     speed_sag_s: float = 0.0
     yaw_rate_max_deg_s: float = 90.0
 
@@ -157,13 +167,17 @@ class VehicleModel:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise ValueError(f"vehicle.{name}: expected a finite number, got {value!r}")
-            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s")
+            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s", "tail_tc_s")
             if value < 0 or (strict and value == 0):
                 raise ValueError(f"vehicle.{name}: expected a number {'>' if strict else '>='} 0, got {value!r}")
+        if self.tail_share > MAX_TAIL_SHARE:
+            raise ValueError(f"vehicle.tail_share: expected a number <= {MAX_TAIL_SHARE}, got {self.tail_share!r}")
 
     def rollout_tau_s(self) -> float:
         """The single first-order time constant that best stands for lag plus delay in the
-        guidance's rollouts (a dead time d followed by lags tau_1, tau_2 has the mean delay d + tau_1 + tau_2)."""
+        guidance's rollouts (a dead time d followed by lags tau_1, tau_2 has the mean delay d + tau_1 + tau_2).
+        The slow tail is left out: it acts over seconds on what remains of an error, while the
+        rollouts plan the first response to a turn (docs/vehicle_model.md)."""
         return self.lag_s + self.delay_s + self.accel_lag_s
 
     def as_dict(self) -> dict[str, float]:

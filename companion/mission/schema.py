@@ -373,6 +373,10 @@ MISSION = Object(
                                    "velocity response", required=True),
                     "accel_lag_s": Field(Number(minimum=0, maximum=5), "time constant of a second "
                                          "lag on the acceleration (0: first-order model)", default=0.0),
+                    "tail_share": Field(Number(minimum=0, maximum=0.95), "share of the velocity error "
+                                        "answered only slowly (the slow tail; 0: none)", default=0.0),
+                    "tail_tc_s": Field(Number(exclusive_minimum=0, maximum=60), "time constant of the "
+                                       "slow tail's low-pass", default=1.0),
                     "speed_sag_s": Field(Number(minimum=0, maximum=10), "speed lost in a turn per "
                                          "unit of lateral acceleration (m/s per m/s^2)", default=0.0),
                     "yaw_rate_max_deg_s": Field(Number(exclusive_minimum=0, maximum=3600),

@@ -11,7 +11,8 @@ time constant ``lag_s`` whose acceleration is limited to ``a_max_m_s2`` (norm of
 acceleration; in a turn at constant speed, the lateral acceleration)::
 
     c_d(t) = c(t - delay_s) * max(0, 1 - speed_sag_s |a_lat(t)| / |c(t - delay_s)|)
-    dv     = (c_d - v) (1 - exp(-dt / lag_s)),   |dv| <= a_max_m_s2 dt          (one step dt)
+    e      = c_d - v,   f += (e - f) (1 - exp(-dt / tail_tc_s))                 (the slow tail)
+    dv     = (e - tail_share f) (1 - exp(-dt / lag_s)),   |dv| <= a_max_m_s2 dt  (one step dt)
 
 and the yaw rate follows its command clipped to ``yaw_rate_max_rad_s``.
 
@@ -22,12 +23,14 @@ The parameters minimise the **free-run** error of the horizontal acceleration ve
 driven by the commands alone (:func:`simulate`, restarted from the measurement after each gap in
 the setpoint stream), its output passed through the same smoother, against the measurement; a
 nonlinear least-squares problem solved by :func:`scipy.optimize.least_squares`, first for the
-first-order model, then with the second lag ``accel_lag_s`` free. The second-order model is kept
-only if it cuts the residual by :data:`SECOND_ORDER_GAIN` of itself and by
-:data:`SECOND_ORDER_GAIN_ABS` of the lateral acceleration's RMS. The fit quality is the variance
-of the measured lateral acceleration the model explains (``1 - var(residual) / var(measured)``)
-one step ahead (each step from the measured velocity, and acceleration for the second-order
-model, where the figure is therefore close to 1 by construction) and in the free run, and the
+first-order model, then with the second lag ``accel_lag_s`` free, then instead with the slow tail
+(``tail_share``, ``tail_tc_s``) free. Either extension is kept only if it cuts the residual by
+:data:`SECOND_ORDER_GAIN` of itself and by :data:`SECOND_ORDER_GAIN_ABS` of the lateral
+acceleration's RMS (the better of the two if both do). The fit quality is the variance of the
+measured lateral acceleration the model explains (``1 - var(residual) / var(measured)``) one
+step ahead (each step from the measured velocity, and acceleration for the second-order model,
+where the figure is therefore close to 1 by construction; the slow tail's low-passed error is
+computed from the measured velocities, as a predictor would) and in the free run, and the
 residual RMS of each.
 
 A parameter is *identified* when its 1-sigma standard error (from the Jacobian at the optimum)
@@ -63,9 +66,16 @@ MIN_SAG_TURNING_S = 5.0
 YAW_HOLD_S = 1.0  # a yaw-rate command held this long has had time to be flown
 YAW_SATURATION_MARGIN = 1.2  # command at least 20 % above the flown rate counts as saturating it
 
-PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s")
-_LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0])
-_UPPER = np.array([1.5, 3.0, 30.0, 2.0, 2.0])
+PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s", "tail_share", "tail_tc_s")
+_LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0, 0.0, 0.05])
+_UPPER = np.array([1.5, 3.0, 30.0, 2.0, 2.0, 0.95, 20.0])
+_SCALE = np.array([0.1, 0.1, 1.0, 0.1, 0.1, 0.1, 0.5])  # least-squares x_scale of each parameter
+# The parameters each model structure fits (indices into PARAMS); the others stay at their
+# neutral values (no second lag, no tail).
+FIRST_ORDER = (0, 1, 2, 3)
+SECOND_ORDER = (0, 1, 2, 3, 4)
+SLOW_TAIL = (0, 1, 2, 3, 5, 6)
+_NEUTRAL = np.array([0.0, 0.3, 3.0, 0.0, 0.0, 0.0, 1.0])
 # The second-order model is kept when it cuts the free-run residual RMS by this share of it and
 # by this share of the lateral acceleration's RMS (a cut of a tiny residual is no evidence).
 SECOND_ORDER_GAIN = 0.1
@@ -197,18 +207,25 @@ def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[n
     """Run the model over the samples; returns ``(acc (N, 2), saturated (N,))``: the model's
     acceleration over each step ``k -> k + 1``.
 
-    ``theta`` = ``(delay_s, lag_s, a_max_m_s2, speed_sag_s, accel_lag_s)``. In a free run
-    (default) the state is the model's own, restarted from the (smoothed) measurement after each
-    gap in the command stream; with ``one_step`` every step starts from the measured velocity
-    (and acceleration, for the second-order model), so the result is the one-step prediction.
+    ``theta`` = ``(delay_s, lag_s, a_max_m_s2, speed_sag_s, accel_lag_s, tail_share, tail_tc_s)``
+    (the last two may be left out: no tail). In a free run (default) the state is the model's
+    own, restarted from the (smoothed) measurement after each gap in the command stream (the
+    tail's low-pass from the error there); with ``one_step`` every step starts from the measured
+    velocity (and acceleration, for the second-order model; the tail's low-pass runs on the
+    measured error), so the result is the one-step prediction.
     The speed sag always reads the model's own lateral acceleration: the measured one, a
     difference of a noisy estimate, would feed its noise straight into the prediction.
     """
     dt, acc_m, a_lat_m, _, v_m = _measured(s)
-    delay, lag, a_max, sag, acc_lag = (float(x) for x in np.asarray(theta, dtype=float))
+    theta = np.asarray(theta, dtype=float)
+    delay, lag, a_max, sag, acc_lag = (float(x) for x in theta[:5])
+    share, tail_tc = (float(theta[5]), float(theta[6])) if theta.size > 5 else (0.0, 1.0)
     c = _delayed_command(s, delay)
     k_v = (1.0 - math.exp(-dt / lag)) / dt if lag > 0 else 1.0 / dt
     k_a = 1.0 - math.exp(-dt / acc_lag) if acc_lag > 0 else 1.0
+    k_f = 1.0 - math.exp(-dt / tail_tc)
+    fn = fe = 0.0
+    restart = True
     n = len(s.t_s)
     out = np.zeros((n, 2))
     sat = np.zeros(n, dtype=bool)
@@ -223,12 +240,18 @@ def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[n
                 an, ae = acc_m[i - 1]
             if not valid[i]:
                 lat_abs = abs(a_lat_m[i - 1]) if i > 0 else 0.0
+                restart = True
                 continue
         cn, ce = c[i]
         cs = math.hypot(cn, ce)
         scale = min(1.0, max(0.0, 1.0 - sag * lat_abs / cs)) if cs > 1e-9 else 1.0
-        tn = (cn * scale - vn) * k_v
-        te = (ce * scale - ve) * k_v
+        en, ee = cn * scale - vn, ce * scale - ve
+        if restart:  # the tail's state is unknown here: as if this error had lasted
+            fn, fe, restart = en, ee, False
+        tn = (en - share * fn) * k_v
+        te = (ee - share * fe) * k_v
+        fn += (en - fn) * k_f
+        fe += (ee - fe) * k_f
         norm = math.hypot(tn, te)
         if norm > a_max:
             tn *= a_max / norm
@@ -256,7 +279,7 @@ class IdentifyResult:
 
     model: VehicleModel
     std_errors: dict[str, float]
-    quality: dict[str, float]
+    quality: dict[str, float | str]
     excitation: dict[str, float]
     unidentified: dict[str, str] = field(default_factory=dict)
 
@@ -266,31 +289,38 @@ def _vaf(measured: np.ndarray, predicted: np.ndarray) -> float:
     return float("nan") if var <= 0 else 1.0 - float(np.var(measured - predicted)) / var
 
 
-def _fit(s: Samples, second_order: bool, start: ArrayLike,
+def _fit(s: Samples, free: tuple[int, ...], start: ArrayLike,
          max_nfev: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """Least squares of the free-run acceleration error; returns (theta, std errors, rms)."""
+    """Least squares of the free-run acceleration error over the parameters ``free`` (indices
+    into :data:`PARAMS`), the others held at ``start``; returns (theta, std errors, rms)."""
     _, acc_m, _, v_mid, _ = _measured(s)
+    idx = np.array(free)
+    base = np.asarray(start, float).copy()
+
+    def full(x: np.ndarray) -> np.ndarray:
+        theta = np.array(base, dtype=float)
+        theta[idx] = x
+        return theta
 
     def residual(x: np.ndarray) -> np.ndarray:
-        theta = x if second_order else np.append(x, 0.0)
+        theta = full(x)
         acc = _smooth_like_measured(s, simulate(s, theta)[0])
         u = _used(s, v_mid, theta[0])
         return np.asarray(acc[u] - acc_m[u], dtype=float).ravel()
 
-    lower, upper = (_LOWER, _UPPER) if second_order else (_LOWER[:4], _UPPER[:4])
-    x0 = np.clip(np.asarray(start, float)[:len(lower)], lower + 1e-6, upper - 1e-6)
-    best = least_squares(residual, x0, bounds=(lower, upper), x_scale=np.array([0.1, 0.1, 1.0, 0.1, 0.1])[:len(lower)],
-                         diff_step=1e-3, max_nfev=max_nfev)
+    lower, upper = _LOWER[idx], _UPPER[idx]
+    x0 = np.clip(base[idx], lower + 1e-6, upper - 1e-6)
+    best = least_squares(residual, x0, bounds=(lower, upper), x_scale=_SCALE[idx], diff_step=1e-3,
+                         max_nfev=max_nfev)
     n = best.fun.size
-    sigma2 = 2.0 * best.cost / max(n - len(lower), 1)
+    sigma2 = 2.0 * best.cost / max(n - len(idx), 1)
     # Neighbouring samples' errors are correlated (the free run carries its error along): count
     # one independent sample per lag time, which widens the standard errors accordingly.
-    lag_samples = max(1.0, float(best.x[1]) / float(s.t_s[1] - s.t_s[0]))
+    lag_samples = max(1.0, float(full(best.x)[1]) / float(s.t_s[1] - s.t_s[0]))
     cov = np.linalg.pinv(best.jac.T @ best.jac) * sigma2 * lag_samples
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    theta = best.x if second_order else np.append(best.x, 0.0)
-    se = se if second_order else np.append(se, 0.0)
-    return theta, se, float(np.sqrt(2.0 * best.cost / max(n, 1)))
+    se = np.zeros(len(PARAMS))
+    se[idx] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return full(best.x), se, float(np.sqrt(2.0 * best.cost / max(n, 1)))
 
 
 def _yaw_rate_limit(s: Samples, delay_s: float, dt: float) -> tuple[float | None, float, float]:
@@ -327,11 +357,23 @@ def identify(s: Samples) -> IdentifyResult:
     if u0.sum() * dt < 10.0:
         raise IdentifyError(f"only {u0.sum() * dt:.1f} s of flight above {MIN_SPEED_M_S} m/s under "
                             "velocity setpoints: expected at least 10 s")
-    theta1, se1, rms1 = _fit(s, False, (0.15, 0.3, 3.0, 0.05), 40)
-    theta2, se2, rms2 = _fit(s, True, (*theta1[:4], 0.05), 20)
+    start = _NEUTRAL.copy()
+    start[list(FIRST_ORDER)] = (0.15, 0.3, 3.0, 0.05)
+    theta1, se1, rms1 = _fit(s, FIRST_ORDER, start, 40)
+    start2 = theta1.copy()
+    start2[4] = 0.05
+    theta2, se2, rms2 = _fit(s, SECOND_ORDER, start2, 20)
+    start3 = theta1.copy()
+    start3[5:] = (0.5, 1.0)
+    theta3, se3, rms3 = _fit(s, SLOW_TAIL, start3, 30)
     a_lat_rms = float(np.sqrt(np.mean(a_lat_m[u0] ** 2)))
-    second = rms2 < (1.0 - SECOND_ORDER_GAIN) * rms1 and rms1 - rms2 > SECOND_ORDER_GAIN_ABS * a_lat_rms
-    theta, se = (theta2, se2) if second else (theta1, se1)
+
+    def better(rms: float) -> bool:
+        return rms < (1.0 - SECOND_ORDER_GAIN) * rms1 and rms1 - rms > SECOND_ORDER_GAIN_ABS * a_lat_rms
+
+    structures = [("first order", theta1, se1, rms1)]
+    structures += [c for c in (("second order", theta2, se2, rms2), ("slow tail", theta3, se3, rms3)) if better(c[3])]
+    structure, theta, se, _ = min(structures, key=lambda c: c[3])
     u = _used(s, v_mid, theta[0])
     a_lat = a_lat_m[u]
     one, sat = simulate(s, theta, one_step=True)
@@ -341,13 +383,15 @@ def identify(s: Samples) -> IdentifyResult:
     quality = {
         "samples": int(u.sum()),
         "duration_s": float(u.sum() * dt),
-        "model_order": 2 if second else 1,
+        "model_order": 2 if structure == "second order" else 1,
+        "model_structure": structure,
         "vaf_one_step": _vaf(a_lat, a_lat_one),
         "residual_rms_one_step_m_s2": float(np.sqrt(np.mean((a_lat - a_lat_one) ** 2))),
         "vaf_free_run": _vaf(a_lat, a_lat_free),
         "residual_rms_free_run_m_s2": float(np.sqrt(np.mean((a_lat - a_lat_free) ** 2))),
         "acc_residual_rms_first_order_m_s2": rms1,
         "acc_residual_rms_second_order_m_s2": rms2,
+        "acc_residual_rms_slow_tail_m_s2": rms3,
         "a_lat_rms_m_s2": float(np.sqrt(np.mean(a_lat ** 2))),
     }
     r = {"saturated": sat, "c": _delayed_command(s, theta[0])}
@@ -373,6 +417,7 @@ def identify(s: Samples) -> IdentifyResult:
     yaw_value = yaw_limit if yaw_limit is not None else max(yaw_flown, math.radians(1.0))
     model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
                          speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
+                         tail_share=float(theta[5]), tail_tc_s=float(theta[6]),
                          yaw_rate_max_deg_s=math.degrees(yaw_value))
     std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
     return IdentifyResult(model=model, std_errors=std, quality=quality, excitation=excitation,
@@ -398,7 +443,8 @@ def _unidentified(excitation: dict[str, float], theta: np.ndarray, se: np.ndarra
                                        f"steady commanded speed (expected {MIN_SAG_TURNING_S:.0f} s)")
     # The sag is zero for a vehicle without it: judge its standard error in absolute terms.
     scales = {"delay_s": max(theta[0], 0.1), "lag_s": theta[1], "a_max_m_s2": theta[2],
-              "speed_sag_s": max(theta[3], 0.2), "accel_lag_s": max(theta[4], 0.05)}
+              "speed_sag_s": max(theta[3], 0.2), "accel_lag_s": max(theta[4], 0.05),
+              "tail_share": max(theta[5], 0.1), "tail_tc_s": theta[6]}
     for i, name in enumerate(PARAMS):
         if name not in unidentified and not se[i] <= MAX_RELATIVE_SE * scales[name]:
             unidentified[name] = (f"standard error {se[i]:.3g} is more than {MAX_RELATIVE_SE:.0%} of the "

@@ -191,3 +191,32 @@ def test_speed_sag_slows_a_steady_turn_by_sag_times_lateral_acceleration():
     speed = math.hypot(*model.state.vel_ned_m_s[:2])
     # the lag alone rotates and shrinks the velocity by 1 / sqrt(1 + (w tau)^2): 0.02 % here
     assert speed == pytest.approx(5.0 / (1.0 + sag * w), rel=5e-3)
+
+
+def test_a_slow_tail_gives_the_step_response_of_its_two_state_linear_system():
+    # A 1 m/s step, below the limit. With w = c - v the velocity error and f its low-pass:
+    #   w' = -(w - s f) / tau,  f' = (w - f) / T,  w(0) = 1, f(0) = 0,
+    # so [w, f](t) = expm(A t) [1, 0], A = [[-1/tau, s/tau], [1/T, -1/T]] (scipy's expm, not the
+    # mock's stepping). Fast at first (slope 1/tau), then slow: eigenvalues of A.
+    from scipy.linalg import expm
+
+    tau, share, tc = 0.45, 0.85, 1.0
+    model = copter(tau_vel_s=tau, tail_share=share, tail_tc_s=tc, a_max_m_s2=10.0)
+    a = [[-1.0 / tau, share / tau], [1.0 / tc, -1.0 / tc]]
+    elapsed = 0.0
+    for t in (0.45, 1.0, 3.0, 6.0):
+        run(model, t - elapsed, vel=(1.0, 0.0, 0.0))
+        elapsed = t
+        w = expm([[x * t for x in row] for row in a])[0][0]
+        assert model.state.vel_ned_m_s[0] == pytest.approx(1.0 - w, abs=0.005), t
+    # The tail is what makes it slow: a first-order lag of 0.45 s is within 0.2 % after 3 s,
+    # this one is still short by more than 10 %.
+    assert 1.0 - math.exp(-3.0 / tau) > 0.998
+    assert 1.0 - expm([[x * 3.0 for x in row] for row in a])[0][0] < 0.9
+
+
+def test_the_slow_tail_share_is_bounded():
+    with pytest.raises(ValueError, match="tail_share"):
+        VehicleParams(kind="copter", tail_share=0.99)
+    with pytest.raises(ValueError, match="tail_tc_s"):
+        VehicleParams(kind="copter", tail_share=0.5, tail_tc_s=0.0)
