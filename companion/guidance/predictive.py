@@ -45,7 +45,10 @@ its feedback core and adds:
    feedback core; see :class:`ModelMonitor`.
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
-``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does. An
+``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
+Pointing away, that goal lies behind the beam: the law then turns round at its bound
+``min(a_max, 2 V^2 / L)`` and does not plan (:mod:`companion.guidance.capture`, our addition;
+``docs/guidance.md``, "Capture far from the path"). An
 open path is continued straight past its end, as the baselines do.
 
 Pure maths (numpy only), deterministic: the same sequence of inputs gives the same outputs.
@@ -59,6 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from companion.guidance.capture import capture_side
 from companion.guidance.path_frame import PathLike, frame_output, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
@@ -438,6 +442,7 @@ class PredictiveGuidance:
         self._lag_s = p.lag_s
         self._a_max = p.a_max_m_s2
         self.monitor = ModelMonitor(p.lag_s, p.a_max_m_s2) if p.adapt_model else None
+        self._capture_side = 0  # the side of the capture turn (companion.guidance.capture), 0: none
 
     def start_projection_at(self, s_m: float) -> None:
         """Seed the projection (e.g. at the path start when a mid-course phase hands over)."""
@@ -610,8 +615,22 @@ class PredictiveGuidance:
         seg = min(int((t_s - self._plan_t0) / self._segment_s), p.plan_segments - 1)
         correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
         a_cmd = min(max(float(a[0]) + correction, -self._a_max), self._a_max)
+        # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
+        # is pointing away; turn round towards it at the law's bound instead of planning.
+        behind = capture_side(state.x_m, state.y_m, state.course_rad, float(gx[0]), float(gy[0]),
+                              f.tx, f.ty, self._capture_side)
+        if behind and not self._capture_side:  # a new capture: turn towards the closest point if behind too
+            behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty, 0) or behind
+        self._capture_side = behind
+        if self._capture_side:
+            v = max(state.speed_m_s, MIN_SPEED_M_S)
+            a_cmd = self._capture_side * min(self._a_max, 2.0 * v * v / self._look_m)
+            correction = 0.0
+            self._plan = np.zeros(p.plan_segments)
+            self._next_reopt_t = -math.inf  # plan afresh on the first tick after the capture
         self._last_cmd = a_cmd
-        extra = {"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat}
+        extra = {"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat,
+                 "capture_side": self._capture_side}
         if monitor is not None:
             extra.update({"model_lag_s": self._lag_s, "model_a_max_m_s2": self._a_max,
                           "model_unexplained": monitor.unexplained})

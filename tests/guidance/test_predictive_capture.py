@@ -110,3 +110,36 @@ def test_on_the_path_the_reference_changes_little():
     assert np.max(np.abs(ref - plain)) < 0.1 * np.max(np.abs(plain))
     assert np.max(np.abs(ref)) == pytest.approx(np.max(np.abs(plain)), abs=1e-3)
     assert np.max(np.abs(ref[-100:])) < 0.005 and np.max(np.abs(plain[-100:])) < 0.005
+
+
+def _away_from_a_line(lambda_s4: float):
+    """A held-out bench case (random scenario 1121, reduced to a line): 25.3 m to the left of a
+    line heading 147.7 deg, 116 m along it, pointing 58 deg away from it (course -88.4 deg), at
+    10.4 m/s with a 0.222 s lag, a 5 m/s^2 limit and a 2.5 m/s wind."""
+    h = math.atan2(0.534, -0.845)
+    path = LinePath(0.0, 0.0, h, 500.0)
+    px, py = 116.0 * math.cos(h), 116.0 * math.sin(h)
+    x0, y0 = px - 25.3 * math.sin(h), py + 25.3 * math.cos(h)  # 25.3 m to the left
+    v = 10.378
+    wind = (-2.448, -0.569)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=lambda_s4, lag_s=0.222, a_max_m_s2=5.0,
+                                                    wind_x_m_s=wind[0], wind_y_m_s=wind[1]))
+    res = simulate(path, law, VehicleState(x0, y0, -1.54213, v), GuidanceParams(speed_m_s=v, rate_hz=50.0),
+                   model=LagModel(0.222, 5.0, wind_enu_m_s=wind), t_max_s=40.0)
+    # distance to the line (the vehicle stays beside it: 116 m from its start, 384 m from its end)
+    d = np.abs(-(res.x_m - 0.0) * math.sin(h) + (res.y_m - 0.0) * math.cos(h))
+    return res, d, v
+
+
+@pytest.mark.parametrize("lambda_s4", [0.03, 0.3])
+def test_pointing_away_the_law_turns_round_and_joins_the_path(lambda_s4):
+    # Behind the beam the pursuit's goal gives a small command (sin(eta) near 0 at eta near 180
+    # deg) and a 5 s plan cannot see the end of a turn round, so without the capture turn the
+    # vehicle flew straight away at lambda 0.03 (2.3 km off after 240 s). With it, it turns at
+    # the limit (radius V^2 / a_max = 21.5 m) and returns: at most the start distance plus the
+    # turn's diameter (plus the lag's V tau), and on the path within 1 m by 20 s.
+    res, d, v = _away_from_a_line(lambda_s4)
+    assert d[0] == pytest.approx(25.3, abs=1e-6)
+    assert np.max(d) <= 25.3 + 2.0 * v * v / 5.0 + v * 0.222
+    assert np.min(d[res.t_s <= 20.0]) < 1.0
+    assert np.max(np.abs(res.a_cmd_m_s2)) <= 5.0 + 1e-9
