@@ -522,6 +522,14 @@ class PredictiveGuidance:
         rate = float(win.tx[i] * vy - win.ty[i] * vx)  # ground velocity across the path, left positive
         return capture_reference(float(d0[0]), rate, tc, np.arange(self._steps) * self.params.rollout_dt_s)
 
+    def _window(self, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> _Window:
+        """The local path samples the pursuit and the rollouts use: from the projection, as far as
+        the horizon (and a far vehicle's look-ahead) reaches."""
+        p = self.params
+        v_g = max(state.speed_m_s, MIN_SPEED_M_S)
+        reach = v_g * (p.horizon_s + p.reopt_period_s) * 1.3 + 1.5 * max(p.l_max_m, SQRT2 * abs(crosstrack_m)) + 5.0
+        return _Window(self.path, s_proj_m, reach)
+
     def reoptimise(self, t_s: float, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> float:
         """Choose the look-ahead distance and refine the correction plan; returns the plan's cost.
 
@@ -536,9 +544,7 @@ class PredictiveGuidance:
            ``refine_iterations`` > 1 repeats step 2 around the new plan.
         """
         p = self.params
-        v_g = max(state.speed_m_s, MIN_SPEED_M_S)
-        reach = v_g * (p.horizon_s + p.reopt_period_s) * 1.3 + 1.5 * max(p.l_max_m, SQRT2 * abs(crosstrack_m)) + 5.0
-        self._win = _Window(self.path, s_proj_m, reach)
+        self._win = self._window(state, s_proj_m, crosstrack_m)
         d_ref = self._reference(state)
         plan = self._shifted_plan(t_s)
         look = self._candidates
@@ -603,11 +609,13 @@ class PredictiveGuidance:
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
         self._s_hint = f.s_m
         reoptimised = False
-        if t_s >= self._next_reopt_t or self._win is None:
+        if self._capture_side:  # turning round (below): no plan, only the goal is needed
+            self._win = self._window(state, f.s_m, f.crosstrack_m)
+        elif t_s >= self._next_reopt_t or self._win is None:
             self.reoptimise(t_s, state, f.s_m, f.crosstrack_m)
             self._next_reopt_t = t_s + p.reopt_period_s - SCHEDULE_TOLERANCE_S
             reoptimised = True
-        assert self._win is not None  # reoptimise() just set it
+        assert self._win is not None  # set just above
         a, l_eff, gx, gy, _ = pursuit_command(
             self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
             np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff,
@@ -621,13 +629,15 @@ class PredictiveGuidance:
                               f.tx, f.ty, self._capture_side)
         if behind and not self._capture_side:  # a new capture: turn towards the closest point if behind too
             behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty, 0) or behind
+        ended = bool(self._capture_side) and not behind
         self._capture_side = behind
         if self._capture_side:
             v = max(state.speed_m_s, MIN_SPEED_M_S)
             a_cmd = self._capture_side * min(self._a_max, 2.0 * v * v / self._look_m)
             correction = 0.0
             self._plan = np.zeros(p.plan_segments)
-            self._next_reopt_t = -math.inf  # plan afresh on the first tick after the capture
+        elif ended:
+            self._next_reopt_t = -math.inf  # plan afresh on the next tick
         self._last_cmd = a_cmd
         extra = {"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat,
                  "capture_side": self._capture_side}

@@ -125,7 +125,7 @@ def _away_from_a_line(lambda_s4: float):
     law = PredictiveGuidance(path, PredictiveParams(lambda_s4=lambda_s4, lag_s=0.222, a_max_m_s2=5.0,
                                                     wind_x_m_s=wind[0], wind_y_m_s=wind[1]))
     res = simulate(path, law, VehicleState(x0, y0, -1.54213, v), GuidanceParams(speed_m_s=v, rate_hz=50.0),
-                   model=LagModel(0.222, 5.0, wind_enu_m_s=wind), t_max_s=40.0)
+                   model=LagModel(0.222, 5.0, wind_enu_m_s=wind), t_max_s=40.0, keep_outputs=True)
     # distance to the line (the vehicle stays beside it: 116 m from its start, 384 m from its end)
     d = np.abs(-(res.x_m - 0.0) * math.sin(h) + (res.y_m - 0.0) * math.cos(h))
     return res, d, v
@@ -143,3 +143,10 @@ def test_pointing_away_the_law_turns_round_and_joins_the_path(lambda_s4):
     assert np.max(d) <= 25.3 + 2.0 * v * v / 5.0 + v * 0.222
     assert np.min(d[res.t_s <= 20.0]) < 1.0
     assert np.max(np.abs(res.a_cmd_m_s2)) <= 5.0 + 1e-9
+    # The turn round is at the limit, on one side, and costs no re-optimisation after the first
+    # tick's (which found it).
+    turning = [o for o in res.outputs if o.extra.get("capture_side")]
+    assert len(turning) >= 50  # at least a second of it
+    assert {o.extra["capture_side"] for o in turning} in ({1}, {-1})
+    assert all(abs(o.a_cmd_m_s2) == pytest.approx(5.0) for o in turning)
+    assert not any(o.reoptimised for o in turning[1:])
