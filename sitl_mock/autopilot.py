@@ -170,6 +170,7 @@ class MockAutopilot:
         # clock, seconds) and the wall time it arrived.
         self._client_time_s = -math.inf
         self._client_wall_s = -math.inf
+        self._time_told_wall_s = -math.inf  # when SYSTEM_TIME was last sent to a waiting client
 
     # ------------------------------------------------------------------ time
     def _tlog_clock(self) -> float:
@@ -495,6 +496,20 @@ class MockAutopilot:
             self._client_time_s = max(self._client_time_s, time_boot_ms / 1000.0)
             self._client_wall_s = time.monotonic()
 
+    def _tell_time(self, now_wall_s: float) -> None:
+        """--pace-lead-s, while waiting: send SYSTEM_TIME (the held time) every 0.1 s of wall time.
+
+        A client that lost the newest datagrams (a full socket buffer drops the latest ones) stamps
+        its setpoints with an older time than the last one sent and would wait for telemetry that
+        the held clock never produces: both sides waiting for ever. Telling it the time breaks that.
+        """
+        if now_wall_s - self._time_told_wall_s < 0.1:
+            return
+        self._time_told_wall_s = now_wall_s
+        msg = self._build(MSG_SYSTEM_TIME)
+        for link in self.links:
+            link.send(msg)
+
     def _client_lagging(self, now_wall_s: float) -> bool:
         """--pace-lead-s: hold simulated time while a live setpoint client is that far behind.
 
@@ -658,6 +673,7 @@ class MockAutopilot:
                     # Simulated time waits for the client (no burst afterwards either).
                     wall0 = now - self.steps * wall_per_step
                     due = 0
+                    self._tell_time(now)
                 if due > 4 * max_batch:
                     # Far behind (machine busy): let simulated time slip rather than burst.
                     self.overruns += 1

@@ -377,3 +377,47 @@ def test_a_second_signal_inside_the_stop_handler_cannot_deadlock_the_mock():
         assert time.monotonic() - started < 5.0
     finally:
         mock.close()
+
+
+def _paced_client(client: Client, seconds: float, newest_ms: int) -> int:
+    """A well-behaved paced client for ``seconds`` of wall time: a setpoint every 20 ms stamped
+    with the newest time_boot_ms heard so far; returns that newest time."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        client.mav.set_position_target_local_ned_send(newest_ms, 1, 1, M.MAV_FRAME_LOCAL_NED, VEL_ONLY,
+                                                      0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+        until = time.monotonic() + 0.02
+        while (left := until - time.monotonic()) > 0:
+            msg = client.conn.recv_match(blocking=True, timeout=left)
+            if msg is not None:
+                newest_ms = max(newest_ms, getattr(msg, "time_boot_ms", 0) or 0)
+    return newest_ms
+
+
+def test_a_paced_client_that_lost_the_newest_telemetry_is_told_the_time_and_the_clock_goes_on(mock_factory):
+    # --pace-lead-s holds the simulated clock while a setpoint client is more than 0.04 s behind.
+    # A client that lost the newest datagrams (a full socket buffer drops the latest ones) stamps
+    # its setpoints with a time older than the last one sent, and would wait for telemetry the
+    # held clock never produces: both sides waiting for ever (seen once in a loaded full run: the
+    # mock silent for 10 s after the mode change). While it waits, the mock sends SYSTEM_TIME.
+    _, client = mock_factory("--autopilot", "px4", "--speedup", "5", "--pace-lead-s", "0.04",
+                             "--start-airborne", "--start-alt-m", "10", "--quiet")
+    client.wait("HEARTBEAT")
+    first = client.wait("LOCAL_POSITION_NED").time_boot_ms
+    # A client stuck at that first time: the clock is held near it, and the client hears the
+    # held time at least every 0.1 s (old mock: nothing at all after the hold began).
+    told = []
+    end = time.monotonic() + 1.5
+    while time.monotonic() < end:
+        client.mav.set_position_target_local_ned_send(first, 1, 1, M.MAV_FRAME_LOCAL_NED, VEL_ONLY,
+                                                      0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+        msg = client.conn.recv_match(type="SYSTEM_TIME", blocking=True, timeout=0.02)
+        if msg is not None:
+            told.append((time.monotonic(), msg.time_boot_ms))
+    late = [tb for t, tb in told if t > end - 1.0]  # after the hold has set in
+    assert len(late) >= 5, told
+    held = max(tb for _, tb in told)
+    assert held - first < 1000  # the clock was held: 1.5 s of wall time at 5x would be 7.5 s
+    # Stamping with the time it hears, the client lets the clock go on (at most 0.04 s ahead of
+    # it per 20 ms setpoint: 2x at least, of the 5x asked).
+    assert _paced_client(client, 1.0, held) - held > 1000
