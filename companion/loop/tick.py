@@ -86,9 +86,13 @@ DEBUG_FIELDS = (
     "setpoint_sent",         # 26 1 if this tick's setpoint went on the wire, 0 if it came too late
     "debug_layout",          # 27 DEBUG_LAYOUT (NaN padding in logs written before this field)
     "yaw_ned_rad",           # 28 the ATTITUDE yaw this tick was given (NaN for None)
+    "rate_hz",               # 29 the loop rate the tick was computed for (its dt is 1 / rate), Hz
 )
-#: Value of the ``debug_layout`` field: 2 from the layout that records the tick's yaw (field 28).
-DEBUG_LAYOUT = 2
+#: Value of the ``debug_layout`` field of the layout written now; a log's value says which of the
+#: later fields it holds (older logs: NaN padding there).
+DEBUG_LAYOUT = 3
+LAYOUT_WITH_YAW = 2  # from this layout on, field 28 holds the tick's yaw
+LAYOUT_WITH_RATE = 3  # from this layout on, field 29 holds the loop rate
 
 
 @dataclass(frozen=True)
@@ -149,6 +153,7 @@ class TickResult:
     prev_course_cmd_rad: float = math.nan  # the inputs carried from the previous tick (NaN: none)
     prev_course_rad: float = math.nan
     yaw_ned_rad: float = math.nan  # the attitude yaw the tick was given (NaN: none)
+    rate_hz: float = math.nan  # the loop rate the tick was computed for (TickConfig.rate_hz)
 
     @property
     def phase_code(self) -> int:
@@ -248,7 +253,8 @@ def compute_tick(
     return _tick_result(tick=tick, t_s=t_s, phase=phase, hold_reason=hold_reason, state=state, output=output,
                         setpoint=setpoint, sample=sample, sample_age_s=sample_age_s, course_rad=course,
                         course_cmd_rad=course_cmd, prev_course_cmd_rad=prev_cmd, prev_course_rad=prev_course_rad,
-                        yaw_ned_rad=math.nan if yaw_ned_rad is None else float(yaw_ned_rad))
+                        yaw_ned_rad=math.nan if yaw_ned_rad is None else float(yaw_ned_rad),
+                        rate_hz=float(config.rate_hz))
 
 
 def _targets(config: TickConfig, s_m: float) -> tuple[float, object]:
@@ -362,6 +368,7 @@ def debug_row(result: TickResult) -> list[float]:
         "setpoint_sent": 1.0,
         "debug_layout": float(DEBUG_LAYOUT),
         "yaw_ned_rad": float(result.yaw_ned_rad),
+        "rate_hz": float(result.rate_hz),
     }
     if len(values) != len(DEBUG_FIELDS):
         raise AssertionError(f"debug_row: {sorted(set(values) ^ set(DEBUG_FIELDS))}")

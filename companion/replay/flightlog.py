@@ -35,7 +35,7 @@ from companion.io.state import GlobalOrigin, global_origin_from_wire
 from companion.io.link import MAV_AUTOPILOT_INVALID, MAV_PARAM_TYPE_REAL32
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
-from companion.loop.tick import DEBUG_FIELDS, DEBUG_LAYOUT, PHASE_CODES
+from companion.loop.tick import DEBUG_FIELDS, LAYOUT_WITH_RATE, LAYOUT_WITH_YAW, PHASE_CODES
 from companion.replay.progress import ByteProgress
 
 GUIDANCE_ARRAY_NAME = "guidance"
@@ -162,7 +162,7 @@ def _tick_yaw(row, newest_logged: float | None) -> float | None:
     """The attitude yaw a tick was given: its own record's (``debug_layout`` >= 2; NaN: none), else,
     in logs written before that field, the newest ``ATTITUDE.yaw`` before the record (which can
     be one that arrived while the tick was computing)."""
-    if row[DEBUG_INDEX["debug_layout"]] >= DEBUG_LAYOUT:  # False for the NaN padding of older logs
+    if row[DEBUG_INDEX["debug_layout"]] >= LAYOUT_WITH_YAW:  # False for the NaN padding of older logs
         yaw = float(row[DEBUG_INDEX["yaw_ned_rad"]])
         return yaw if math.isfinite(yaw) else None
     return newest_logged
@@ -341,8 +341,22 @@ def _setpoint_ticks(pairs: list[tuple]) -> list[LoggedTick]:
             for i, (time_s, (sample_time, sample), yaw, sp) in enumerate(pairs)]
 
 
+def recorded_rate_hz(ticks: list[LoggedTick]) -> float | None:
+    """The loop rate the flight's ticks record (``debug_layout`` >= 3), or None (older logs)."""
+    for tk in ticks:
+        row = tk.debug
+        if row is not None and row[DEBUG_INDEX["debug_layout"]] >= LAYOUT_WITH_RATE:
+            rate = float(row[DEBUG_INDEX["rate_hz"]])
+            if math.isfinite(rate) and rate > 0:
+                return rate
+    return None
+
+
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:
-    """Loop rate from the median spacing of the recorded tick times (50 Hz if unknown)."""
+    """Loop rate: the one recorded, else from the median spacing of the tick times (50 Hz if unknown)."""
+    recorded = recorded_rate_hz(ticks)
+    if recorded is not None:
+        return recorded
     times = sorted(tk.t_s for tk in ticks if math.isfinite(tk.t_s))
     steps = [b - a for a, b in zip(times, times[1:]) if b > a]
     if not steps:

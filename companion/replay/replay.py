@@ -57,6 +57,7 @@ from companion.replay.flightlog import (
     LoggedTick,
     phase_name,
     read_flight,
+    recorded_rate_hz,
 )
 from companion.replay.progress import ByteProgress
 from companion.sim.metrics import PROFILE_METRIC_KEYS, profile_errors, tracking_metrics
@@ -219,8 +220,13 @@ def in_flight_frame(flight: LoggedFlight, mission: Mission) -> Mission:
 
 
 def flight_rate_hz(flight: LoggedFlight, mission: Mission) -> float:
-    """The loop rate the flight ran at: from the recorded tick times (median spacing, rounded to
-    a whole number of hertz when within 1 %), else the mission's ``guidance.rate_hz``."""
+    """The loop rate the flight ran at: the one its ticks record; in logs from before that field,
+    from the recorded tick times (median spacing, rounded to a whole number of hertz when within
+    1 %: right on an unloaded machine, not where many ticks were skipped); else the mission's
+    ``guidance.rate_hz``."""
+    recorded = recorded_rate_hz(flight.ticks) if flight.kind == "companion" else None
+    if recorded is not None:
+        return recorded
     if flight.kind == "companion" and len(flight.ticks) > 2:
         t = np.array([tk.t_s for tk in flight.ticks])
         steps = np.diff(t)
