@@ -7,15 +7,13 @@ from __future__ import annotations
 
 import math
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
 from companion.guidance.types import GuidanceOutput
 from companion.io.state import PositionSample
-from companion.io.tlog import TlogWriter
 from companion.loop.tick import TickConfig, compute_tick
 from companion.mission import parse_mission
 from companion.replay.flightlog import DEBUG_INDEX, read_flight
 from companion.replay.replay import flight_rate_hz
+from replay_tlogtools import TlogBuilder
 
 # Tick times of a loaded 50 Hz flight on the autopilot's clock: spacings 0.01-0.04 s, median 0.03.
 TIMES_S = [0.0, 0.04, 0.07, 0.08, 0.11, 0.15, 0.17, 0.20, 0.24, 0.26, 0.29, 0.33, 0.34]
@@ -34,10 +32,9 @@ class Turning:
 
 
 def write_log(path, old_layout: bool) -> None:
-    ap = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
-    comp = mavlink2.MAVLink(None, srcSystem=1, srcComponent=191)
+    log = TlogBuilder()
+    ap, comp = log.sender(1, 1), log.sender(1, 191)
     config = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0)
-    packets = []
     for k, t in enumerate(TIMES_S):
         ms = 1000 + round(1000 * t)
         sample = PositionSample(ms, 0.0, 5.0 * t, -10.0, 0.0, 5.0, 0.0)
@@ -46,12 +43,9 @@ def write_log(path, old_layout: bool) -> None:
             for name in ("debug_layout", "yaw_ned_rad", "rate_hz"):
                 row[DEBUG_INDEX[name]] = math.nan
         row += [math.nan] * (58 - len(row))
-        packets += [ap.local_position_ned_encode(ms, 0.0, 5.0 * t, -10.0, 0.0, 5.0, 0.0),
-                    comp.debug_float_array_encode(ms * 1000, b"guidance", 0, row)]
-    with TlogWriter(path) as tlog:
-        for i, msg in enumerate(packets):
-            sender = comp if msg.get_srcComponent() == 191 else ap
-            tlog.write(bytes(msg.pack(sender)), 1.0e9 + 0.001 * i)
+        log.add(t, 1, 1, ap.local_position_ned_encode(ms, 0.0, 5.0 * t, -10.0, 0.0, 5.0, 0.0))
+        log.add(t + 0.001, 1, 191, comp.debug_float_array_encode(ms * 1000, b"guidance", 0, row))
+    log.write(path)
 
 
 def test_the_recorded_rate_is_the_rate_replayed(tmp_path):

@@ -6,13 +6,11 @@ from __future__ import annotations
 import math
 import struct
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
 from companion.io.state import PositionSample
-from companion.io.tlog import TlogWriter
 from companion.loop.tick import TickConfig, compute_tick
 from companion.guidance.types import GuidanceOutput
 from companion.replay.flightlog import DEBUG_INDEX, read_flight
+from replay_tlogtools import TlogBuilder
 
 YAW_USED = 0.3  # the ATTITUDE the tick read
 YAW_LATER = 0.9  # the ATTITUDE logged after it, before the tick's record
@@ -28,8 +26,8 @@ def f32(x: float) -> float:
 
 
 def write_log(path, old_layout: bool) -> None:
-    ap = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
-    comp = mavlink2.MAVLink(None, srcSystem=1, srcComponent=191)
+    log = TlogBuilder()
+    ap, comp = log.sender(1, 1), log.sender(1, 191)
     sample = PositionSample(1000, 0.0, 0.0, -10.0, 0.0, 0.0, 0.0)  # hovering: the course is the yaw
     result = compute_tick(Straight(), 0, 0.0, sample, 0.01, TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0),
                           yaw_ned_rad=YAW_USED)
@@ -38,19 +36,18 @@ def write_log(path, old_layout: bool) -> None:
         row[DEBUG_INDEX["debug_layout"]] = row[DEBUG_INDEX["yaw_ned_rad"]] = math.nan
     row += [math.nan] * (58 - len(row))
     sp = result.setpoint
-    packets = [
-        ap.local_position_ned_encode(1000, 0.0, 0.0, -10.0, 0.0, 0.0, 0.0),
-        ap.attitude_encode(1000, 0.0, 0.0, YAW_USED, 0.0, 0.0, 0.0),
-        ap.attitude_encode(1010, 0.0, 0.0, YAW_LATER, 0.0, 0.0, 0.0),
-        comp.debug_float_array_encode(1000 * 1000, b"guidance", 0, row),
-        comp.set_position_target_local_ned_encode(1010, 1, 1, 1, 1479, 0.0, 0.0, 0.0, sp.vx_ned_m_s,
-                                                  sp.vy_ned_m_s, sp.vz_ned_m_s, 0.0, 0.0, 0.0, 0.0,
-                                                  sp.yaw_rate_ned_rad_s),
+    packets = [  # (component, message)
+        (1, ap.local_position_ned_encode(1000, 0.0, 0.0, -10.0, 0.0, 0.0, 0.0)),
+        (1, ap.attitude_encode(1000, 0.0, 0.0, YAW_USED, 0.0, 0.0, 0.0)),
+        (1, ap.attitude_encode(1010, 0.0, 0.0, YAW_LATER, 0.0, 0.0, 0.0)),
+        (191, comp.debug_float_array_encode(1000 * 1000, b"guidance", 0, row)),
+        (191, comp.set_position_target_local_ned_encode(1010, 1, 1, 1, 1479, 0.0, 0.0, 0.0, sp.vx_ned_m_s,
+                                                        sp.vy_ned_m_s, sp.vz_ned_m_s, 0.0, 0.0, 0.0, 0.0,
+                                                        sp.yaw_rate_ned_rad_s)),
     ]
-    with TlogWriter(path) as tlog:
-        for i, msg in enumerate(packets):
-            sender = comp if msg.get_srcComponent() == 191 else ap
-            tlog.write(bytes(msg.pack(sender)), 1.0e9 + 0.001 * i)
+    for i, (component, msg) in enumerate(packets):
+        log.add(0.001 * i, 1, component, msg)
+    log.write(path)
 
 
 def test_the_tick_is_replayed_with_the_yaw_it_recorded(tmp_path):
