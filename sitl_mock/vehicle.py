@@ -261,8 +261,8 @@ class VehicleModel:
         if p.tail_share > 0.0:
             # Slow tail: a low-passed share of the error is taken back from what the loop asks for.
             fx, fy = self._tail_ne_m_s
-            self._tail_ne_m_s = (fx + (ex - fx) * _lag_gain(dt_s, p.tail_tc_s),
-                                 fy + (ey - fy) * _lag_gain(dt_s, p.tail_tc_s))
+            kf = _lag_gain(dt_s, p.tail_tc_s)
+            self._tail_ne_m_s = (fx + (ex - fx) * kf, fy + (ey - fy) * kf)
             ex, ey = ex - p.tail_share * fx, ey - p.tail_share * fy
         dvx = ex * k + acc_ff_ned_m_s2[0] * dt_s
         dvy = ey * k + acc_ff_ned_m_s2[1] * dt_s

@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from companion.guidance.capture import capture_side
+from companion.guidance.capture import capture_command_m_s2, capture_side
 from companion.guidance.path_frame import PathLike, frame_output, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
@@ -632,8 +632,8 @@ class PredictiveGuidance:
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
         if self._capture_side:
-            v = max(state.speed_m_s, MIN_SPEED_M_S)
-            a_cmd = self._capture_side * min(self._a_max, 2.0 * v * v / self._look_m)
+            turn = capture_command_m_s2(self._capture_side, max(state.speed_m_s, MIN_SPEED_M_S), self._look_m)
+            a_cmd = min(max(turn, -self._a_max), self._a_max)
             correction = 0.0
             self._plan = np.zeros(p.plan_segments)
         elif ended:
