@@ -74,13 +74,16 @@ def mission():
     return parse_mission(MISSION, "e2e.yaml")
 
 
-def start_mock(m, autopilot, port, extra=()):
+def start_mock(m, autopilot, port, vehicle_model_file, extra=()):
+    """The mock flying the offline simulator's vehicle: a first-order lag and a limit, no dead
+    time, slow tail or speed sag (the personalities' identified defaults have those)."""
+    vehicle_model_file.write_text(f"vehicle: {{lag_s: {TAU_VEL_S}, a_max_m_s2: {A_MAX_M_S2}}}\n")
     yaw_deg = math.degrees(frames.yaw_ned_from_enu(m.start.heading_rad))
     mock = MockProcess([
         "--autopilot", autopilot, "--vehicle", "copter", "--link", f"udpout:127.0.0.1:{port}",
         "--speedup", f"{SPEEDUP:g}", f"--start-ned={m.start.y_m},{m.start.x_m}",
         "--start-alt-m", "10", f"--start-yaw-deg={yaw_deg}", "--start-airborne",
-        "--tau-vel-s", str(TAU_VEL_S), "--a-max-m-s2", str(A_MAX_M_S2), "--quiet",
+        "--vehicle-model", str(vehicle_model_file), "--quiet",
         "--offboard-loss-s", str(SPEEDUP), "--guided-timeout-s", str(3 * SPEEDUP),
         "--pace-lead-s", str(PACE_LEAD_S), *extra,
     ])
@@ -90,7 +93,7 @@ def start_mock(m, autopilot, port, extra=()):
 
 def fly(m, autopilot, tmp_path, extra_mock=(), **kw):
     port = free_udp_port()
-    mock = start_mock(m, autopilot, port, extra_mock)
+    mock = start_mock(m, autopilot, port, tmp_path / "vehicle.yaml", extra_mock)
     opts = dict(connect=f"udpin:127.0.0.1:{port}", rate_hz=50.0, clock="autopilot",
                 tlog_path=str(tmp_path / "flight.tlog"), heartbeat_timeout_s=30.0,
                 link_timeout_s=10.0, max_duration_s=200.0)

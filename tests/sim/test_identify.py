@@ -14,6 +14,7 @@ import yaml
 from companion.cli.main import main
 from companion.guidance.types import VehicleModel
 from companion.sim.identify import Samples, identify, lateral_m_s2, resample, simulate
+from sitl_mock.personality import IDENTIFIED_COPTER_MODELS
 from sitl_mock.vehicle import VehicleModel as MockVehicle
 from sitl_mock.vehicle import VehicleParams
 
@@ -28,6 +29,17 @@ def shared(path: Path) -> Path:
     """A shared flight log; missing is a failure (the checkout must have shared/ beside it)."""
     assert path.is_file(), f"{path} is missing: these tests need ../shared/data beside the repository"
     return path
+
+
+def assert_the_mock_flies_this_identification(autopilot: str, report: dict) -> None:
+    """The mock's copter personality defaults to what identify finds in the real firmware's flight:
+    every identified parameter within 2 standard errors (or 1 %) of the mock's."""
+    mock = IDENTIFIED_COPTER_MODELS[autopilot]
+    for key, value in report["vehicle"].items():
+        if key in report["unidentified"]:
+            continue
+        tolerance = max(2.0 * report["std_errors"].get(key, 0.0), 0.01 * abs(value), 1e-9)
+        assert mock[key] == pytest.approx(value, abs=tolerance), (autopilot, key, mock[key], value)
 
 
 # ------------------------------------------------------------------ closed forms
@@ -169,6 +181,7 @@ def test_arducopter_identification_flight_explains_90_percent_of_lateral_acceler
     block = yaml.safe_load(ardupilot_id.read_text())
     assert set(block) == {"vehicle"}
     assert VehicleModel(**block["vehicle"]).a_max_m_s2 == pytest.approx(vehicle["a_max_m_s2"], abs=0.01)
+    assert_the_mock_flies_this_identification("ardupilot", report)
 
 
 def test_px4_identification_flight_needs_the_slow_tail_and_names_the_yaw_limit_it_cannot_see(capsys):
@@ -187,6 +200,7 @@ def test_px4_identification_flight_needs_the_slow_tail_and_names_the_yaw_limit_i
     assert "yaw_rate_max_deg_s" in report["unidentified"]
     assert report["vehicle"]["yaw_rate_max_deg_s"] >= 85.0
     assert 3.0 <= report["vehicle"]["a_max_m_s2"] <= 5.0
+    assert_the_mock_flies_this_identification("px4", report)
 
 
 def test_a_gentle_flight_is_refused_naming_the_parameter_it_cannot_identify(capsys):

@@ -36,7 +36,7 @@ def wait_until(predicate, timeout_s: float, period_s: float = 0.05):
     return predicate()
 
 
-def test_mavsdk_connects_reads_position_arms_and_flies_offboard_velocity():
+def test_mavsdk_connects_reads_position_arms_and_flies_offboard_velocity(first_order_vehicle):
     from mavsdk import ComponentType, Configuration, ConnectionResult, Mavsdk
     from mavsdk.plugins.action import Action
     from mavsdk.plugins.offboard import Offboard, VelocityNedYaw
@@ -44,7 +44,7 @@ def test_mavsdk_connects_reads_position_arms_and_flies_offboard_velocity():
 
     port = free_udp_port()
     mock = MockProcess("--autopilot", "px4", "--vehicle", "copter", "--link", f"udpout:127.0.0.1:{port}",
-                       "--speedup", "4", "--origin", "47.397742,8.545594,488")
+                       "--speedup", "4", "--origin", "47.397742,8.545594,488", *first_order_vehicle)
     sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
     try:
         assert sdk.add_any_connection(f"udpin://127.0.0.1:{port}") == ConnectionResult.SUCCESS

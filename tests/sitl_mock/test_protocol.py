@@ -97,10 +97,11 @@ def test_commands_for_another_system_are_ignored_and_command_int_works(mock_fact
     assert client.wait("HEARTBEAT", predicate=lambda m: m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED) is not None
 
 
-def test_px4_offboard_refused_without_stream_then_flies_the_velocity_then_fails_safe_to_hold(mock_factory, tmp_path):
+def test_px4_offboard_refused_without_stream_then_flies_the_velocity_then_fails_safe_to_hold(
+        mock_factory, tmp_path, first_order_vehicle):
     tlog = tmp_path / "mock.tlog"
     mock, client = mock_factory("--start-airborne", "--start-alt-m", "10", "--speedup", "4",
-                                "--offboard-loss-s", "0.5", "--tlog", str(tlog))
+                                "--offboard-loss-s", "0.5", "--tlog", str(tlog), *first_order_vehicle)
     client.wait("HEARTBEAT")
     assert client.command(M.MAV_CMD_DO_SET_MODE, 1, 6) == M.MAV_RESULT_TEMPORARILY_REJECTED
     refusal = client.wait("STATUSTEXT", predicate=lambda m: "Offboard" in m.text)

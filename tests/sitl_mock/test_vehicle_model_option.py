@@ -7,7 +7,7 @@ import math
 import pytest
 
 from sitl_mock.cli import build_parser, config_from_args, main
-from sitl_mock.personality import IDENTIFIED_COPTER_MODELS
+from sitl_mock.personality import IDENTIFIED_COPTER_MODELS, Personality
 
 
 def config(*argv):
@@ -52,3 +52,13 @@ def test_a_bad_vehicle_model_file_is_one_line_and_exit_2(tmp_path, capsys, text,
     assert main(["--vehicle-model", str(f), "--duration-s", "0.1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and expected in err[0], err
+
+
+@pytest.mark.parametrize("a_max_m_s2, tilt_deg", [(3.86, 45.0), (12.0, math.degrees(math.atan(12.0 / 9.80665)))])
+def test_the_px4_mock_publishes_the_firmware_tilt_limit_unless_its_vehicle_is_faster(a_max_m_s2, tilt_deg):
+    # Real PX4 bounds OFFBOARD velocity control only by g tan(MPC_TILTMAX_AIR), 45 deg by default,
+    # far above what its SIH quadrotor flies: the mock publishes the same, so that a companion
+    # reads on the mock what it reads on the firmware.
+    params = Personality("px4", "copter").default_params(1, 0.5, 3.0, a_max_m_s2, 90.0, 12.0, (15.0, 10.0, 25.0), 45.0)
+    assert params["MPC_TILTMAX_AIR"].value == pytest.approx(tilt_deg)
+    assert 9.80665 * math.tan(math.radians(params["MPC_TILTMAX_AIR"].value)) >= a_max_m_s2 - 1e-9
