@@ -309,7 +309,7 @@ def pursuit_command(win: _Window, x: np.ndarray, y: np.ndarray, course_rad: np.n
 
 # Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
 MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
-MONITOR_LAG_FLOOR_S = 0.1  # the candidates of a nominal lag of 0 are multiples of this
+MONITOR_LAG_FLOOR_S = 0.2  # the candidates of a nominal lag of 0 (ideal: unknown) are multiples of this
 MONITOR_A_MAX_FACTORS = (1.0, 0.7, 0.5)
 MONITOR_GAP_FACTOR = 3.0  # a step this many times the usual one: ticks were skipped or coasted
 MONITOR_OBS_TC_S = 0.2  # low-pass of the observed (and each candidate's) lateral acceleration

@@ -50,6 +50,35 @@ def test_the_monitor_finds_a_vehicle_twice_as_slow_with_half_the_acceleration():
     assert 2.0 in MONITOR_LAG_FACTORS and 0.5 in MONITOR_A_MAX_FACTORS
 
 
+def test_from_an_ideal_nominal_model_the_monitor_finds_an_arducopter_like_lag():
+    # No vehicle: block: the law is told nothing (lag 0) and the real ArduCopter answers with about
+    # 0.63 s of dead time plus lag (docs/vehicle_model.md): a candidate must reach that far.
+    m = fly_monitor(0.6, 2.5, nominal_lag_s=0.0, nominal_a_max=2.5)
+    assert m.lag_s == pytest.approx(0.6)
+    assert not m.fallback
+
+
+def test_predictive_told_nothing_of_arducopter_learns_it_and_stops_saturating():
+    # The racetrack planned for an ideal inner loop within the 2.5 m/s^2 read from WPNAV_ACCEL,
+    # flown by ArduCopter's identified response (0.173 s dead time, 0.457 s lag, 2.43 m/s^2).
+    mission = load_mission(ROOT / "missions" / "racetrack.yaml")
+    st = mission.start
+    arducopter = LagModel(tau_s=0.457, a_max_m_s2=2.43, delay_s=0.173)
+    out = {}
+    for adapt in (False, True):
+        params = replace(mission.guidance, method="predictive", rollout_tau_s=0.0, a_max_m_s2=2.5, adapt_model=adapt)
+        law = TwoPhaseGuidance(mission.path, params)
+        r = simulate(mission.path, law, VehicleState(st.x_m, st.y_m, st.heading_rad, mission.speed_m_s), params,
+                     model=arducopter, t_max_s=90.0, keep_outputs=True)
+        after = r.t_s > 30.0
+        a_cmd = np.array([o.a_cmd_m_s2 for o in r.outputs])
+        out[adapt] = (float(np.sqrt(np.mean(r.crosstrack_m[after] ** 2))), float(np.mean(np.abs(a_cmd) >= 2.5 * 0.999)))
+    # planning for an ideal loop it rings, saturated most of the time; learning the lag it does not
+    assert out[False][1] > 0.3 and out[False][0] > 0.3
+    assert out[True][1] < 0.05
+    assert out[True][0] < 0.015
+
+
 def test_predictive_given_a_model_wrong_by_2x_adapts_and_tracks_at_least_as_well():
     # The racetrack with a vehicle: block claiming twice the acceleration and half the lag the
     # simulated vehicle has: with the monitor, the law re-plans with what it sees.

@@ -48,6 +48,17 @@ def test_the_mission_says_otherwise_with_a_vehicle_block_or_a_lower_guidance_lim
     assert used is with_vehicle and "vehicle: block" in line and "not used" in line
 
 
+@pytest.mark.parametrize("mission_limit, read", [(math.inf, 2.5), (2.0, 2.5), (math.inf, None)])
+def test_without_a_vehicle_block_the_model_monitor_is_on_and_the_log_says_so(mission_limit, read):
+    # Nothing describes how the autopilot flies the commands: predictive must learn it in flight.
+    m = load_mission(str(ROOT / "missions" / "racetrack.yaml"))
+    m = dataclasses.replace(m, guidance=dataclasses.replace(m.guidance, method="predictive", a_max_m_s2=mission_limit))
+    assert not m.guidance.adapt_model
+    used, line = mission_with_limit(m, None if read is None else AutopilotLimit(read, "WPNAV_ACCEL 250 cm/s^2"))
+    assert used.guidance.adapt_model and "model monitor" in line
+    assert used.guidance.a_max_m_s2 == min(mission_limit, read or math.inf)
+
+
 def test_a_flight_on_the_mock_reads_wpnav_accel_flies_within_it_and_replays(tmp_path, capsys):
     mission = tmp_path / "tight.yaml"
     # A 6 m circle at 5 m/s needs V^2/R = 4.2 m/s^2, more than the mock ArduCopter's 2.43 m/s^2.
