@@ -627,7 +627,11 @@ class PredictiveGuidance:
         # is pointing away; turn round towards it at the law's bound instead of planning.
         behind = capture_side(state.x_m, state.y_m, state.course_rad, float(gx[0]), float(gy[0]),
                               f.tx, f.ty, self._capture_side)
-        if behind and not self._capture_side:  # a new capture: turn towards the closest point if behind too
+        if behind and not self._capture_side and abs(f.crosstrack_m) > self._look_m:
+            # A new capture farther from the path than the look-ahead: turn towards the closest
+            # point if that is behind too. Nearer, the goal decides: the closest point's side is
+            # then the sign of a small error (on the path, of noise), and following it turned a
+            # vehicle started on the path across it the long way round.
             behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty, 0) or behind
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind

@@ -150,3 +150,20 @@ def test_pointing_away_the_law_turns_round_and_joins_the_path(lambda_s4):
     assert {o.extra["capture_side"] for o in turning} in ({1}, {-1})
     assert all(abs(o.a_cmd_m_s2) == pytest.approx(5.0) for o in turning)
     assert not any(o.reoptimised for o in turning[1:])
+
+
+@pytest.mark.parametrize("offset_m", [0.01, -0.01, 0.0])
+def test_started_on_the_path_facing_across_it_the_law_turns_the_short_way(offset_m):
+    # A copter on the ground at the path start, facing 97 deg from the path's direction (an
+    # eastward line, the copter pointing north-north-west): its goal lies ahead along the line,
+    # behind the beam on the right; so the short turn is right (97 deg, not 263). A real
+    # ArduCopter, a centimetre to the left of the line, turned left and went 15 m off.
+    path = LinePath(-10.0, 0.0, 0.0, 500.0)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
+    res = simulate(path, law, VehicleState(0.0, offset_m, math.radians(97.0), V), GuidanceParams(speed_m_s=V),
+                   model=LagModel(0.3, 2.5), t_max_s=15.0, keep_outputs=True)
+    assert res.a_cmd_m_s2[0] < 0.0  # right
+    # a right turn of radius V^2 / a_max = 10 m from a 97 deg heading strays r (1 - cos 97 deg)
+    # = 11.2 m beside the line, plus V tau = 1.5 m of lag; the long way round would be 2 r = 20 m
+    assert np.max(np.abs(res.y_m)) < 11.2 + 1.5 + 0.5
+    assert abs(res.y_m[-1]) < 0.5
