@@ -307,6 +307,10 @@ def pursuit_command(win: _Window, x: np.ndarray, y: np.ndarray, course_rad: np.n
     return a, l_eff, gx, gy, d
 
 
+#: Off the path by less than this, a capture turn ignores the closest point's side (only the goal's).
+CAPTURE_SIDE_MIN_OFFSET_M = 1.0
+
+
 # Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
 MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 MONITOR_LAG_FLOOR_S = 0.2  # the candidates of a nominal lag of 0 (ideal: unknown) are multiples of this
@@ -627,11 +631,11 @@ class PredictiveGuidance:
         # is pointing away; turn round towards it at the law's bound instead of planning.
         behind = capture_side(state.x_m, state.y_m, state.course_rad, float(gx[0]), float(gy[0]),
                               f.tx, f.ty, self._capture_side)
-        if behind and not self._capture_side and abs(f.crosstrack_m) > self._look_m:
-            # A new capture farther from the path than the look-ahead: turn towards the closest
-            # point if that is behind too. Nearer, the goal decides: the closest point's side is
-            # then the sign of a small error (on the path, of noise), and following it turned a
-            # vehicle started on the path across it the long way round.
+        if behind and not self._capture_side and abs(f.crosstrack_m) > CAPTURE_SIDE_MIN_OFFSET_M:
+            # A new capture off the path: turn towards the closest point if that is behind too.
+            # On the path the goal decides: the closest point's side is there the sign of an error
+            # of centimetres (of noise, on a real vehicle), and following it turned a vehicle
+            # started on the path facing across it the long way round.
             behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty, 0) or behind
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
