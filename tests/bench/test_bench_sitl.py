@@ -3,8 +3,20 @@ real-firmware tier, whose flights are in tests/sitl); its table and ratio from g
 
 from __future__ import annotations
 
-from companion.bench.sitl import arducopter_target, format_table, px4_target
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+from companion.bench.sitl import arducopter_target, format_table, log_figures, px4_target
 from companion.cli.main import main
+from companion.guidance.types import GuidanceOutput
+from companion.io.state import PositionSample
+from companion.loop.tick import TickConfig, compute_tick
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "replay"))
+from replay_tlogtools import TlogBuilder  # noqa: E402
 
 
 def test_no_binary_is_refused_with_one_line(capsys, tmp_path):
@@ -35,3 +47,37 @@ def test_the_table_puts_mock_and_real_side_by_side():
     text = format_table(result)
     assert "d_rms_m                0.500           0.600" in text
     assert "d_rms real / mock: 1.20" in text
+
+
+class Commanded:
+    """A law commanding given accelerations, one per tick."""
+
+    def __init__(self, a_m_s2):
+        self.a = list(a_m_s2)
+
+    def step(self, t_s, state):
+        return GuidanceOutput(a_cmd_m_s2=self.a.pop(0), phase="close_range", crosstrack_m=0.1, s_proj_m=0.0)
+
+
+def test_saturation_is_counted_over_the_flight_and_after_30_s_against_the_limit_read(tmp_path):
+    # 40 ticks at 1 Hz; the autopilot says WPNAV_ACCEL 250 cm/s^2: 2.5 m/s^2. Saturated: ticks
+    # 0-9 (a capture) and tick 35: 11 of 40 over the flight, 1 of the 10 from 30 s on.
+    a = [2.5] * 10 + [1.0] * 20 + [-1.0] * 5 + [-2.5] + [0.5] * 4
+    law = Commanded(a)
+    log = TlogBuilder()
+    ap, comp = log.sender(1, 1), log.sender(1, 191)
+    log.add(0.0, 1, 1, ap.param_value_encode(b"WPNAV_ACCEL", 250.0, 9, 1, 0))
+    config = TickConfig(speed_m_s=5.0, rate_hz=1.0, altitude_m=10.0)
+    for k in range(40):
+        t = float(k)
+        ms = 1000 + 1000 * k
+        sample = PositionSample(ms, 0.0, 5.0 * t, -10.0, 0.0, 5.0, 0.0)
+        row = list(compute_tick(law, k, t, sample, 0.0, config, prev_course_rad=0.0).debug)
+        row += [math.nan] * (58 - len(row))
+        log.add(t + 0.5, 1, 1, ap.local_position_ned_encode(ms, 0.0, 5.0 * t, -10.0, 0.0, 5.0, 0.0))
+        log.add(t + 0.501, 1, 191, comp.debug_float_array_encode(ms * 1000, b"guidance", 0, row))
+    figures = log_figures(str(log.write(tmp_path / "f.tlog")), math.inf)
+    assert figures["a_limit_m_s2"] == pytest.approx(2.5)
+    assert figures["sat_share"] == pytest.approx(11 / 40)
+    assert figures["sat_share_settled"] == pytest.approx(1 / 10)
+    assert figures["d_rms_settled_m"] == pytest.approx(0.1)
