@@ -56,6 +56,14 @@ class Target:
     port: int
     warmup_s: float
     env: dict[str, str] = field(default_factory=dict)
+    # The heading the simulated vehicle starts with (degrees clockwise from north); the mock is
+    # started with the same, so that both begin the flight pointing the same way.
+    start_yaw_deg: float = 0.0
+
+
+#: ArduPilot SITL's start heading without ``--home``: ``SIM_OPOS_HDG``, 353 deg by default
+#: (``libraries/SITL/SITL.cpp``; its start position is CMAC's). PX4's SIH starts facing north.
+ARDUCOPTER_START_YAW_DEG = 353.0
 
 
 def arducopter_target(binary: str, defaults: str | None, instance: int, port: int, speedup: float,
@@ -66,7 +74,8 @@ def arducopter_target(binary: str, defaults: str | None, instance: int, port: in
         cmd[3:3] = ["--defaults", defaults]
     if speedup != 1.0:
         cmd += ["--speedup", f"{speedup:g}"]
-    return Target("ardupilot", cmd, port, 50.0 / speedup if warmup_s is None else warmup_s)
+    return Target("ardupilot", cmd, port, 50.0 / speedup if warmup_s is None else warmup_s,
+                  start_yaw_deg=ARDUCOPTER_START_YAW_DEG)
 
 
 def px4_target(binary: str, romfs: str, warmup_s: float | None) -> Target:
@@ -177,6 +186,14 @@ class Process:
         self._log.close()
 
 
+def mock_cmd(target: Target, port: int, duration_s: float) -> list[str]:
+    """The mock standing in for ``target``: its autopilot's copter personality (which flies the model
+    identified from that firmware), on the ground, facing where the real SITL's vehicle starts."""
+    return [sys.executable, "-m", "sitl_mock", "--autopilot", target.autopilot, "--vehicle", "copter",
+            "--link", f"udpout:127.0.0.1:{port}", "--quiet", "--duration-s", f"{duration_s:.0f}",
+            f"--start-yaw-deg={target.start_yaw_deg:g}"]
+
+
 def fly_on(target: Target, real: bool, mission: str, fly_opts: list[str], workdir: Path, timeout_s: float) -> dict:
     """Start the mock (``real`` False) or the binary, wait for it, fly the mission, stop it."""
     workdir.mkdir(parents=True, exist_ok=True)
@@ -186,8 +203,7 @@ def fly_on(target: Target, real: bool, mission: str, fly_opts: list[str], workdi
             cmd = [*cmd, "-w", str(workdir)]
     else:
         port = _free_port()
-        cmd = [sys.executable, "-m", "sitl_mock", "--autopilot", target.autopilot, "--vehicle", "copter",
-               "--link", f"udpout:127.0.0.1:{port}", "--quiet", "--duration-s", f"{timeout_s + 30:.0f}"]
+        cmd = mock_cmd(target, port, timeout_s + 30.0)
         env, warmup_s = {"PYTHONPATH": str(Path(__file__).resolve().parents[2])}, 1.0
     proc = Process(cmd, workdir, env)
     try:

@@ -9,11 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from companion.bench.sitl import arducopter_target, format_table, log_figures, px4_target
+from companion.bench.sitl import arducopter_target, format_table, log_figures, mock_cmd, px4_target
 from companion.cli.main import main
 from companion.guidance.types import GuidanceOutput
 from companion.io.state import PositionSample
 from companion.loop.tick import TickConfig, compute_tick
+
+from pymavlink import mavutil
+from sitl_mock.cli import build_parser, config_from_args
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "replay"))
 from replay_tlogtools import TlogBuilder  # noqa: E402
@@ -36,6 +39,23 @@ def test_the_binaries_start_as_the_sitl_scripts_start_them():
     p = px4_target("px4", "etc", None)
     assert p.cmd[:5] == ["px4", "etc", "-s", "etc/init.d-posix/rcS", "-d"] and p.port == 14540
     assert p.env["PX4_SYS_AUTOSTART"] == "10040"
+
+
+REAL = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
+
+
+@pytest.mark.parametrize("log", ["ardupilot-copter-racetrack-predictive.tlog", "ardupilot-copter-figure-eight-corrector.tlog",
+                                 "px4-sih-racetrack-predictive.tlog"])
+def test_the_mock_starts_facing_where_the_real_sitl_starts(log):
+    # The mid-course circles and the capture turn depend on the start heading: a mock facing north
+    # chose another circle than the real ArduCopter, facing 353 deg, on the figure-eight.
+    target = (arducopter_target("ac", None, 4, 14640, 1.0, None) if log.startswith("ardupilot")
+              else px4_target("px4", "etc", None))
+    argv = mock_cmd(target, 14999, 60.0)[3:]  # after "python -m sitl_mock"
+    start_yaw_deg = config_from_args(build_parser().parse_args(argv)).start_yaw_deg
+    conn = mavutil.mavlink_connection(str(REAL / log))
+    first = conn.recv_match(type="ATTITUDE")  # on the ground, before take-off
+    assert abs(math.remainder(math.degrees(first.yaw) - start_yaw_deg, 360.0)) < 3.0
 
 
 def test_the_table_puts_mock_and_real_side_by_side():
