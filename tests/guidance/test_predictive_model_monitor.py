@@ -58,21 +58,27 @@ def test_from_an_ideal_nominal_model_the_monitor_finds_an_arducopter_like_lag():
     assert not m.fallback
 
 
+def fly_racetrack(mission_file: str, vehicle: LagModel, t_max_s: float, **guidance):
+    """The mission's racetrack flown offline by ``vehicle`` with the guidance fields replaced;
+    its d_rms after 30 s, the share of commands at the guidance's limit, and the last extra."""
+    mission = load_mission(ROOT / "missions" / mission_file)
+    st = mission.start
+    params = replace(mission.guidance, **guidance)
+    law = TwoPhaseGuidance(mission.path, params)
+    r = simulate(mission.path, law, VehicleState(st.x_m, st.y_m, st.heading_rad, mission.speed_m_s), params,
+                 model=vehicle, t_max_s=t_max_s, keep_outputs=True)
+    after = r.t_s > 30.0
+    a_cmd = np.array([o.a_cmd_m_s2 for o in r.outputs])
+    saturated = float(np.mean(np.abs(a_cmd) >= params.a_max_m_s2 * 0.999))
+    return float(np.sqrt(np.mean(r.crosstrack_m[after] ** 2))), saturated, r.outputs[-1].extra
+
+
 def test_predictive_told_nothing_of_arducopter_learns_it_and_stops_saturating():
     # The racetrack planned for an ideal inner loop within the 2.5 m/s^2 read from WPNAV_ACCEL,
     # flown by ArduCopter's identified response (0.173 s dead time, 0.457 s lag, 2.43 m/s^2).
-    mission = load_mission(ROOT / "missions" / "racetrack.yaml")
-    st = mission.start
     arducopter = LagModel(tau_s=0.457, a_max_m_s2=2.43, delay_s=0.173)
-    out = {}
-    for adapt in (False, True):
-        params = replace(mission.guidance, method="predictive", rollout_tau_s=0.0, a_max_m_s2=2.5, adapt_model=adapt)
-        law = TwoPhaseGuidance(mission.path, params)
-        r = simulate(mission.path, law, VehicleState(st.x_m, st.y_m, st.heading_rad, mission.speed_m_s), params,
-                     model=arducopter, t_max_s=90.0, keep_outputs=True)
-        after = r.t_s > 30.0
-        a_cmd = np.array([o.a_cmd_m_s2 for o in r.outputs])
-        out[adapt] = (float(np.sqrt(np.mean(r.crosstrack_m[after] ** 2))), float(np.mean(np.abs(a_cmd) >= 2.5 * 0.999)))
+    out = {adapt: fly_racetrack("racetrack.yaml", arducopter, 90.0, method="predictive", rollout_tau_s=0.0,
+                                a_max_m_s2=2.5, adapt_model=adapt) for adapt in (False, True)}
     # planning for an ideal loop it rings, saturated most of the time; learning the lag it does not
     assert out[False][1] > 0.3 and out[False][0] > 0.3
     assert out[True][1] < 0.05
@@ -82,17 +88,9 @@ def test_predictive_told_nothing_of_arducopter_learns_it_and_stops_saturating():
 def test_predictive_given_a_model_wrong_by_2x_adapts_and_tracks_at_least_as_well():
     # The racetrack with a vehicle: block claiming twice the acceleration and half the lag the
     # simulated vehicle has: with the monitor, the law re-plans with what it sees.
-    mission = load_mission(ROOT / "missions" / "racetrack_predictive.yaml")
-    st = mission.start
     true = LagModel(tau_s=0.6, a_max_m_s2=2.5, delay_s=0.0)
-    out = {}
-    for adapt in (False, True):
-        params = replace(mission.guidance, rollout_tau_s=0.3, a_max_m_s2=5.0, adapt_model=adapt)
-        law = TwoPhaseGuidance(mission.path, params)
-        r = simulate(mission.path, law, VehicleState(st.x_m, st.y_m, st.heading_rad, mission.speed_m_s), params,
-                     model=true, t_max_s=120.0, keep_outputs=True)
-        after = r.t_s > 30.0
-        out[adapt] = (float(np.sqrt(np.mean(r.crosstrack_m[after] ** 2))), r.outputs[-1].extra)
-    assert out[True][1]["model_lag_s"] == pytest.approx(0.6)
-    assert out[True][1]["model_a_max_m_s2"] == pytest.approx(2.5)
+    out = {adapt: fly_racetrack("racetrack_predictive.yaml", true, 120.0, rollout_tau_s=0.3, a_max_m_s2=5.0,
+                                adapt_model=adapt) for adapt in (False, True)}
+    assert out[True][2]["model_lag_s"] == pytest.approx(0.6)
+    assert out[True][2]["model_a_max_m_s2"] == pytest.approx(2.5)
     assert out[True][0] <= out[False][0]
