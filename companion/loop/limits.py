@@ -71,28 +71,31 @@ def mission_with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[
     """The mission to fly on this autopilot, and the log line saying what it uses.
 
     Its guidance flies within ``limit`` unless the mission says otherwise (a ``vehicle:`` block, or
-    a lower ``guidance.a_max_m_s2``). Without a ``vehicle:`` block nothing describes how the
-    autopilot flies the commands, so ``adapt_model`` is turned on as well: ``predictive``'s model
-    monitor learns the vehicle's lag and limit in flight (docs/vehicle_model.md) instead of planning
-    for an ideal inner loop. The other methods do not plan and ignore it.
+    a lower ``guidance.a_max_m_s2``). When a limit was read and there is no ``vehicle:`` block,
+    nothing describes how the autopilot flies the commands, so ``adapt_model`` is turned on as
+    well: ``predictive``'s model monitor learns the vehicle's lag and limit in flight
+    (docs/guidance.md) instead of planning for an ideal inner loop; the other methods do not plan
+    and ignore it. (Only then: the PARAM_VALUE answers in the tlog are what tells replay to do
+    the same.)
     """
     g = mission.guidance
     if mission.vehicle is not None:
         read = f" (the autopilot's {limit.source} not used)" if limit is not None else ""
         return mission, (f"acceleration limit {mission.vehicle.a_max_m_s2:g} m/s^2 from the mission's "
                          f"vehicle: block{read}")
-    monitor = "; no vehicle: block: the model monitor learns the vehicle" if g.method == "predictive" else ""
     if limit is None:
         own = "none" if math.isinf(g.a_max_m_s2) else f"{g.a_max_m_s2:g} m/s^2"
-        line = f"acceleration limit: not read from the autopilot; the mission's ({own})"
-    elif g.a_max_m_s2 <= limit.a_max_m_s2:
+        return mission, f"acceleration limit: not read from the autopilot; the mission's ({own})"
+    if g.a_max_m_s2 <= limit.a_max_m_s2:
         line = (f"acceleration limit {g.a_max_m_s2:g} m/s^2 from the mission's guidance.a_max_m_s2 "
                 f"(the autopilot's {limit.source} = {limit.a_max_m_s2:.3g} m/s^2 is higher)")
     else:
         g = dataclasses.replace(g, a_max_m_s2=limit.a_max_m_s2)
         line = f"acceleration limit {limit.a_max_m_s2:.3g} m/s^2 from the autopilot's {limit.source}"
+    if g.method == "predictive":
+        line += "; no vehicle: block: the model monitor learns the vehicle"
     guidance = dataclasses.replace(g, adapt_model=True)
-    return dataclasses.replace(mission, guidance=guidance), line + monitor
+    return dataclasses.replace(mission, guidance=guidance), line
 
 
 def apply_autopilot_limits(link, mission: Mission, event: Callable[[str], None],

@@ -49,14 +49,18 @@ def test_the_mission_says_otherwise_with_a_vehicle_block_or_a_lower_guidance_lim
 
 
 @pytest.mark.parametrize("mission_limit, read", [(math.inf, 2.5), (2.0, 2.5), (math.inf, None)])
-def test_without_a_vehicle_block_the_model_monitor_is_on_and_the_log_says_so(mission_limit, read):
+def test_with_a_limit_read_and_no_vehicle_block_the_model_monitor_is_on_and_the_log_says_so(mission_limit, read):
     # Nothing describes how the autopilot flies the commands: predictive must learn it in flight.
+    # With no limit read (no PARAM_VALUE in the log for replay to see) the mission is flown as it is.
     m = load_mission(str(ROOT / "missions" / "racetrack.yaml"))
     m = dataclasses.replace(m, guidance=dataclasses.replace(m.guidance, method="predictive", a_max_m_s2=mission_limit))
     assert not m.guidance.adapt_model
     used, line = mission_with_limit(m, None if read is None else AutopilotLimit(read, "WPNAV_ACCEL 250 cm/s^2"))
-    assert used.guidance.adapt_model and "model monitor" in line
-    assert used.guidance.a_max_m_s2 == min(mission_limit, read or math.inf)
+    if read is None:
+        assert used is m and "model monitor" not in line
+    else:
+        assert used.guidance.adapt_model and "model monitor" in line
+        assert used.guidance.a_max_m_s2 == min(mission_limit, read)
 
 
 def test_a_flight_on_the_mock_reads_wpnav_accel_flies_within_it_and_replays(tmp_path, capsys):
