@@ -296,8 +296,11 @@ class MidcourseGuidance:
             if self._flown_m + 0.5 * speed_m_s * dt >= self.plan.chosen.arc_m:
                 self.stage = "circle"
             else:
+                # The arc is held as a curvature, V^2 c at the speed now (the plan's a_cmd_m_s2 at
+                # constant speed): a vehicle still gathering speed after take-off, or sagging in a
+                # turn, flew another arc under a constant command and missed W.
                 self.lookahead_xy_m = self.plan.chosen.contact_xy_m
-                return self.plan.chosen.a_cmd_m_s2, "approach", False
+                return self.plan.chosen.curvature_1_m * speed_m_s * speed_m_s, "approach", False
         remaining = self._remaining_rad(x_m, y_m)
         prev = self._remaining_prev
         self._remaining_prev = remaining

@@ -67,7 +67,7 @@ def test_lemma_1_matches_the_papers_lambda_for_its_canonical_scene():
     assert math.cos(math.atan2(a.contact_xy_m[1], a.contact_xy_m[0])) == pytest.approx(phi_cos, abs=1e-9)
 
 
-def fly_midcourse(path, x, y, heading_deg, t_max_s=400.0, rate_hz=50.0):
+def fly_midcourse(path, x, y, heading_deg, t_max_s=400.0, rate_hz=50.0, speed_of_t=lambda t: V, trace=None):
     params = GuidanceParams(method="fixed_l1", rate_hz=rate_hz)
     law = TwoPhaseGuidance(path, params)
     from companion.sim.simulator import unicycle_step
@@ -76,10 +76,13 @@ def fly_midcourse(path, x, y, heading_deg, t_max_s=400.0, rate_hz=50.0):
     psi = math.radians(heading_deg)
     t = 0.0
     while t < t_max_s:
-        out = law.step(t, VehicleState(x, y, psi, V))
+        v = speed_of_t(t)
+        out = law.step(t, VehicleState(x, y, psi, v))
+        if trace is not None:
+            trace.append((t, x, y, out.extra.get("stage")))
         if out.phase != "midcourse":
             return law, x, y, psi, out
-        x, y, psi = unicycle_step(x, y, psi, V, out.a_cmd_m_s2, dt)
+        x, y, psi = unicycle_step(x, y, psi, v, out.a_cmd_m_s2, dt)
         t += dt
     raise AssertionError("the mid-course phase never ended")
 
@@ -125,6 +128,22 @@ def test_mid_course_on_the_papers_sine_arrives_on_the_start():
     assert math.hypot(xe - sx, ye - sy) < 1.0
     heading_error = (psi - sine.start_heading_rad + math.pi) % (2 * math.pi) - math.pi
     assert abs(math.degrees(heading_error)) < 5.0
+
+
+def test_a_vehicle_gathering_speed_still_flies_the_approach_arc_to_w():
+    # A copter that has just taken off gathers speed during the approach (a real PX4 SIH: 3.4 m/s
+    # at the plan, 4.5 m/s 12 s later). Held as a constant command, V^2 c at the plan's speed,
+    # the arc flew straighter than planned and missed W; held as the curvature c, it reaches W.
+    speed = lambda t: 3.4 + 1.6 * min(t / 12.0, 1.0)  # noqa: E731
+    plan = plan_midcourse(-40.0, -10.0, math.radians(90.0), speed(0.0), (0.0, 0.0), math.pi / 2, 10.0)
+    assert plan.chosen.arc_m > 50.0 and abs(plan.chosen.curvature_1_m) > 0.02  # a real arc to fly
+    trace = []
+    law, xe, ye, psi, out = fly_midcourse(STRAIGHT_NORTH, -40.0, -10.0, 90.0, speed_of_t=speed, trace=trace)
+    at_w = next((x, y) for (_, x, y, stage), (_, _, _, nxt) in zip(trace, trace[1:])
+                if stage == "approach" and nxt != "approach")
+    wx, wy = law.midcourse_plan.chosen.contact_xy_m
+    assert math.hypot(at_w[0] - wx, at_w[1] - wy) < 0.5
+    assert math.hypot(xe, ye) < 1.0
 
 
 def test_constant_command_during_the_approach_equals_parks_command_at_w():
