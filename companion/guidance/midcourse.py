@@ -29,8 +29,9 @@ sense touch is either lemma 1's W ("primary": red / blue sectors) or the alterna
 circle is reached in sense through its primary W, fly that one; otherwise (green sectors) fly
 the circle whose touch needs the smaller ``|a|``.
 
-Flight: the constant command ``a = V^2 c`` (equal to Park's ``2 V^2 sin(eta) / |PW|`` with W as
-a static look-ahead point) is held until the vehicle has flown the arc to W; then the initiation
+Flight: the arc's curvature c is held, commanding ``a = V^2 c`` at each tick's speed (at the
+plan's speed, Park's ``2 V^2 sin(eta) / |PW|`` with W as a static look-ahead point; at the paper's
+constant speed, a constant command), until the vehicle has flown the arc to W; then the initiation
 circle is followed with constant-L1 guidance on the circle (look-ahead ``min(L1, sqrt(2) R)``,
 which is the closed loop whose steady command is ``V^2 / R``) until the vehicle passes S, where
 the close-range phase takes over.
@@ -63,11 +64,11 @@ class InitiationCircle:
 
 @dataclass(frozen=True)
 class Approach:
-    """The constant-command arc from the vehicle to a contact point on an initiation circle."""
+    """The constant-curvature arc from the vehicle to a contact point on an initiation circle."""
 
     circle: InitiationCircle
     contact_xy_m: tuple[float, float]  # W
-    a_cmd_m_s2: float  # V^2 c, held constant until W
+    a_cmd_m_s2: float  # V^2 c at the plan's speed (the flight holds c, not this command)
     curvature_1_m: float  # c, signed (0: straight approach)
     turn_rad: float  # course change from P to W, >= 0, in the direction of the turn
     arc_m: float  # distance flown from P to W
@@ -215,7 +216,7 @@ def circle_lookahead(x_m: float, y_m: float, circle: InitiationCircle,
 
 
 class MidcourseGuidance:
-    """Flies the mid-course phase: turn-in (if needed), the constant-command arc, the circle.
+    """Flies the mid-course phase: turn-in (if needed), the constant-curvature arc, the circle.
 
     The paper only considers vehicles heading towards the initiation circle (angle between the
     velocity and the line to the circle centre at most 90 deg). Outside that scope lemma 1's
