@@ -194,34 +194,82 @@ class _Window:
             k = np.concatenate([k, np.zeros(beyond.size)])
         self.x, self.y, self.tx, self.ty, self.k = x, y, tx, ty, k
         self.index = np.arange(self.x.size)
+        # The rollouts project onto the window every step, where the cost is the number of numpy
+        # calls: what depends on the window alone is stacked here once, so that one fancy index
+        # reads it all. ``xy`` broadcasts against the vehicles' positions; ``at_nearest[:, i]`` is
+        # the position, the tangent, the tangent swapped and half the curvature of sample i;
+        # ``at_goal[:, j]`` the sample before j (j itself for the first) and the step from it to j;
+        # ``at_kappa[:, i]`` the curvature and its step to the next sample (none for the last).
+        before = np.maximum(self.index - 1, 0)
+        after = np.minimum(self.index + 1, x.size - 1)
+        self.xy = np.stack([x, y])[:, None, :]
+        self.at_nearest = np.stack([x, y, tx, ty, ty, tx, 0.5 * k])
+        self.at_goal = np.stack([x[before], y[before], x - x[before], y - y[before]])
+        self.at_kappa = np.stack([k, k[after] - k])
+        self._from: np.ndarray | None = None
+
+    def from_samples(self, i: np.ndarray) -> np.ndarray:
+        """Row r: which samples have an index >= ``i[r]``."""
+        if self._from is None:
+            # An n x n table pays for itself over the steps of the rollouts, not for the single
+            # row of a tick nor for a far vehicle's long window.
+            if i.size == 1 or self.x.size > 600:
+                return self.index >= i[:, None]
+            self._from = self.index[None, :] >= self.index[:, None]  # row i: from sample i on
+        return self._from.take(i, axis=0)
 
 
-_ROWS: dict[int, np.ndarray] = {}
+_ROW_STARTS: dict[tuple[int, int], np.ndarray] = {}
 
 
-def _rows(n: int) -> np.ndarray:
-    """``np.arange(n)``, cached (the rollouts index rows with it every step)."""
-    r = _ROWS.get(n)
+def _row_starts(rows: int, columns: int) -> np.ndarray:
+    """Where each row starts in a flattened ``(rows, columns)`` array, cached (the rollouts
+    pick one element per row with it every step)."""
+    key = (rows, columns)
+    r = _ROW_STARTS.get(key)
     if r is None:
-        r = _ROWS[n] = np.arange(n)
+        r = _ROW_STARTS[key] = np.arange(rows) * columns
     return r
 
 
-def _nearest(win: _Window, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nearest sample index, signed cross-track error (positive left) and distance matrix."""
-    dx = win.x[None, :] - x[:, None]
-    dy = win.y[None, :] - y[:, None]
-    r2 = dx * dx + dy * dy
-    i = np.argmin(r2, axis=1)
-    rows = _rows(x.size)
+def _const(value: float) -> np.ndarray:
+    """``value`` as a 0-d array: the per-step arithmetic takes its constants so, as numpy
+    converts a Python float afresh on every call (a third of the cost of an operation on a few
+    dozen numbers). The results are the same."""
+    return np.array(float(value))
+
+
+_SPACING, _MINUS_SPACING = _const(WINDOW_SPACING_M), _const(-WINDOW_SPACING_M)
+_MIN_SPEED, _SQRT2, _PI, _TWO_PI = _const(MIN_SPEED_M_S), _const(SQRT2), _const(math.pi), _const(2.0 * math.pi)
+_ZERO, _ONE, _TWO, _TINY_M, _TINY_STEP_M = _const(0.0), _const(1.0), _const(2.0), _const(1e-6), _const(1e-12)
+
+
+def _project(win: _Window, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest sample of every column of ``xy`` (x and y in rows), signed cross-track error
+    (positive left), squared distance matrix, ``win.at_nearest`` at the nearest sample, and the
+    distance along its tangent (not clipped)."""
+    dxy = win.xy - xy[:, :, None]
+    dxy *= dxy
+    r2 = dxy[0] + dxy[1]
+    i = r2.argmin(axis=1)
+    near = win.at_nearest.take(i, axis=1)
+    e = xy - near[:2]  # from the sample to the vehicle
+    te = near[2:4] * e
+    along = te[0] + te[1]
     # Distance to the osculating circle at the nearest sample, to second order: the normal offset
     # from the tangent line minus kappa along^2 / 2 (the tangent line alone is off by up to
     # kappa spacing^2 / 8, 4 mm on a 30 m arc: the size of the differences the fronts measure).
-    ex, ey = -dx[rows, i], -dy[rows, i]
     # Past either end of the window (a vehicle before an open path's start) the nearest sample
     # is the end one and ``along`` is unbounded: the correction is only meant within one spacing.
-    along = np.minimum(np.maximum(win.tx[i] * ex + win.ty[i] * ey, -WINDOW_SPACING_M), WINDOW_SPACING_M)
-    d = win.tx[i] * ey - win.ty[i] * ex - 0.5 * win.k[i] * along * along
+    along_c = np.minimum(np.maximum(along, _MINUS_SPACING), _SPACING)
+    ne = near[4:6] * e  # ty ex, tx ey
+    d = ne[1] - ne[0] - near[6] * along_c * along_c
+    return i, d, r2, near, along
+
+
+def _nearest(win: _Window, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest sample index, signed cross-track error (positive left) and squared distance matrix."""
+    i, d, r2, _, _ = _project(win, np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)]))
     return i, d, r2
 
 
@@ -267,44 +315,63 @@ def pursuit_command(win: _Window, x: np.ndarray, y: np.ndarray, course_rad: np.n
     beyond P (the law passes its lag model's time constant): a first-order inner loop follows a
     curvature ramp one time constant late, and leading the feed-forward by it cancels that.
     """
-    v = np.maximum(speed_m_s, MIN_SPEED_M_S)
-    i0, d, r2 = _nearest(win, x, y)
-    l_eff = np.maximum(look_m, SQRT2 * np.abs(d))
+    a, l_eff, goal, d = _pursue(win, np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)]),
+                                course_rad, speed_m_s, look_m, curvature_ff, lead_s)
+    if a_max_m_s2 < math.inf:
+        a = np.minimum(np.maximum(a, -a_max_m_s2), a_max_m_s2)
+    return a, l_eff, goal[0], goal[1], d
+
+
+def _pursue(win: _Window, xy: np.ndarray, course_rad: np.ndarray, speed_m_s: np.ndarray, look_m: np.ndarray,
+            curvature_ff: float, lead_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`pursuit_command` (not clipped) for the positions ``xy`` (x and y in rows): returns
+    the commands, L_eff, the goals (x and y in rows) and the cross-track errors.
+
+    The rollouts call this every step, with a few dozen rows against a window of a hundred
+    samples or so: its cost is the number of numpy calls, which x and y stacked in one array and
+    the window's stacked tables keep low. Every number is the plain formula's, operand for
+    operand, so the results are the same to the last bit.
+    """
+    n = win.x.size
+    v = np.maximum(speed_m_s, _MIN_SPEED)
+    i0, d, r2, near, along = _project(win, xy)
+    l_eff = np.maximum(look_m, _SQRT2 * np.abs(d))
+    # The goal sample j: the first at index >= i0 and distance >= L_eff (else the last one).
     r = np.sqrt(r2)
-    ahead = (win.index[None, :] >= i0[:, None]) & (r >= l_eff[:, None])
-    has = ahead.any(axis=1)
-    j = np.where(has, np.argmax(ahead, axis=1), win.x.size - 1)
-    jm = np.maximum(j - 1, 0)
-    rows = _rows(j.size)
-    rj, rjm = r[rows, j], r[rows, jm]
-    frac = np.where(has & (j > i0) & (rj > rjm), (l_eff - rjm) / np.maximum(rj - rjm, 1e-12), 1.0)
-    frac = np.minimum(np.maximum(frac, 0.0), 1.0)
-    gx = win.x[jm] + frac * (win.x[j] - win.x[jm])
-    gy = win.y[jm] + frac * (win.y[j] - win.y[jm])
-    los = np.arctan2(gy - y, gx - x)
-    eta = np.mod(los - course_rad + math.pi, 2.0 * math.pi) - math.pi
-    dist = np.maximum(np.hypot(gx - x, gy - y), 1e-6)
-    a = 2.0 * v * v * np.sin(eta) / dist
+    ahead = r >= l_eff[:, None]
+    ahead &= win.from_samples(i0)
+    j = ahead.argmax(axis=1)
+    at_j = _row_starts(j.size, n) + j  # (row, j) in the flattened matrices
+    has = ahead.ravel().take(at_j)
+    r_flat = r.ravel()
+    r_j, r_jm = r_flat.take(at_j), r_flat.take(at_j - 1)
+    # Interpolated between j - 1 and j where a sample j > i0 was found (then r_jm < L_eff <= r_j,
+    # as j - 1 was not far enough, and the fraction lies in [0, 1]), else at j (r_j and r_jm are
+    # not used then). Where none was found, argmax gave j = 0 <= i0.
+    frac = np.where(j > i0, (l_eff - r_jm) / np.maximum(r_j - r_jm, _TINY_STEP_M), _ONE)
+    at_goal = win.at_goal.take(np.where(has, j, n - 1), axis=1)
+    goal = at_goal[:2] + frac * at_goal[2:]
+    to_goal = goal - xy
+    eta = np.mod(np.arctan2(to_goal[1], to_goal[0]) - course_rad + _PI, _TWO_PI) - _PI
+    vv = v * v
+    w2 = vv * _TWO  # 2 V^2 (doubling is exact: the same number as (2 V) V)
+    a = w2 * np.sin(eta) / np.maximum(np.hypot(to_goal[0], to_goal[1]), _TINY_M)
     if curvature_ff:
         # P: the vehicle projected on the tangent line of its nearest sample (continuous in the
         # vehicle's position, unlike the sample itself); curvature interpolated to it.
-        tx, ty = win.tx[i0], win.ty[i0]
-        along = (x - win.x[i0]) * tx + (y - win.y[i0]) * ty
-        px, py = win.x[i0] + along * tx, win.y[i0] + along * ty
+        chord = goal - (near[:2] + along * near[2:4])  # from P to the goal
         # The curvature is read ``lead_s`` ahead (V lead_s metres): a first-order inner loop of
         # time constant tau follows a ramp of command tau late, so leading it by tau cancels that.
-        pos = i0 + (along + v * lead_s) / WINDOW_SPACING_M
-        pos = np.minimum(np.maximum(pos, 0.0), win.x.size - 1.0)
-        lo = np.minimum(pos.astype(int), win.x.size - 2) if win.x.size > 1 else np.zeros_like(i0)
-        frac_k = pos - lo
-        kappa = win.k[lo] + frac_k * (win.k[np.minimum(lo + 1, win.x.size - 1)] - win.k[lo])
-        cx, cy = gx - px, gy - py
-        chord = np.maximum(np.hypot(cx, cy), 1e-6)
-        sin_eta_p = (tx * cy - ty * cx) / chord  # cross(tangent, chord) / |chord|
-        a = a - curvature_ff * (2.0 * v * v * sin_eta_p / chord - v * v * kappa)
-    if a_max_m_s2 < math.inf:
-        a = np.minimum(np.maximum(a, -a_max_m_s2), a_max_m_s2)
-    return a, l_eff, gx, gy, d
+        pos = i0 + (along + v * lead_s) / _SPACING
+        pos = np.minimum(np.maximum(pos, _ZERO), n - 1.0)
+        lo = np.minimum(pos.astype(int), n - 2) if n > 1 else np.zeros_like(i0)
+        at_kappa = win.at_kappa.take(lo, axis=1)
+        kappa = at_kappa[0] + (pos - lo) * at_kappa[1]
+        length = np.maximum(np.hypot(chord[0], chord[1]), _TINY_M)
+        cross = near[4:6] * chord  # ty cx, tx cy
+        sin_eta_p = (cross[1] - cross[0]) / length  # cross(tangent, chord) / |chord|
+        a = a - curvature_ff * (w2 * sin_eta_p / length - vv * kappa)
+    return a, l_eff, goal, d
 
 
 #: Off the path by less than this, a capture turn ignores the closest point's side (only the goal's).
@@ -479,29 +546,47 @@ class PredictiveGuidance:
         k = look_m.size
         heading, v_air = self._air(state)
         h = np.full(k, heading)
-        x = np.full(k, state.x_m)
-        y = np.full(k, state.y_m)
+        xy = np.empty((2, k))  # x and y in rows, as the pursuit takes them
+        xy[0], xy[1] = state.x_m, state.y_m
         a_act = np.full(k, self._a_hat)
-        dt = p.rollout_dt_s
-        alpha = self._alpha(dt)
-        wx, wy = p.wind_x_m_s, p.wind_y_m_s
-        sq_dt = math.sqrt(dt)
-        sq_lam_dt = math.sqrt(p.lambda_s4 * dt)
-        res = np.empty((k, 2 * self._steps))
+        step_plans = plans.T[self._seg_of_step]  # every row's correction at every step
+        cff, lead, limit = p.curvature_ff, self._lag_s, self._a_max
+        dt = _const(p.rollout_dt_s)
+        alpha, speed, half = _const(self._alpha(p.rollout_dt_s)), _const(v_air), _const(0.5)
+        # The ground velocity is the air velocity plus the wind; adding a zero wind would change
+        # nothing (V cos(h) is never -0.0), so it is skipped.
+        wind = np.array([[p.wind_x_m_s], [p.wind_y_m_s]]) if p.wind_x_m_s or p.wind_y_m_s else None
+        trig = np.empty((2, k))
+        ds, us = [], []
         for n in range(self._steps):
-            gx = v_air * np.cos(h) + wx
-            gy = v_air * np.sin(h) + wy
-            u, _, _, _, d = pursuit_command(win, x, y, np.arctan2(gy, gx), np.hypot(gx, gy), look_m, math.inf,
-                                            p.curvature_ff, self._lag_s)
-            u = np.minimum(np.maximum(u + plans[:, self._seg_of_step[n]], -self._a_max), self._a_max)
-            res[:, 2 * n] = (d if d_ref_m is None else d - d_ref_m[n]) * sq_dt
-            res[:, 2 * n + 1] = u * sq_lam_dt
-            a_act += (u - a_act) * alpha
-            dh = a_act / v_air * dt
-            mid = h + 0.5 * dh
-            x = x + (v_air * np.cos(mid) + wx) * dt
-            y = y + (v_air * np.sin(mid) + wy) * dt
+            np.cos(h, out=trig[0])
+            np.sin(h, out=trig[1])
+            ground = speed * trig
+            if wind is not None:
+                ground += wind
+            u, _, _, d = _pursue(win, xy, np.arctan2(ground[1], ground[0]), np.hypot(ground[0], ground[1]), look_m,
+                                 cff, lead)
+            u += step_plans[n]
+            if limit < math.inf:
+                u = np.minimum(np.maximum(u, -limit), limit)
+            ds.append(d)
+            us.append(u)
+            a_act = a_act + (u - a_act) * alpha
+            dh = a_act / speed * dt
+            mid = h + half * dh
+            np.cos(mid, out=trig[0])
+            np.sin(mid, out=trig[1])
+            ground = speed * trig
+            if wind is not None:
+                ground += wind
+            xy = xy + ground * dt
             h = h + dh
+        d_steps, u_steps = np.array(ds), np.array(us)
+        if d_ref_m is not None:
+            d_steps -= d_ref_m[:, None]
+        res = np.empty((k, 2 * self._steps))
+        res[:, 0::2] = (d_steps * math.sqrt(p.rollout_dt_s)).T
+        res[:, 1::2] = (u_steps * math.sqrt(p.lambda_s4 * p.rollout_dt_s)).T
         return res
 
     def _shifted_plan(self, t_s: float) -> np.ndarray:
