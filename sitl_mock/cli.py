@@ -21,7 +21,7 @@ from sitl_mock.vehicle import VehicleParams
 # Keys of the vehicle: block a model must give (the others default as in a mission).
 _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
 _MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
-                   "yaw_rate_max_deg_s": 90.0}
+                   "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0}
 
 
 def load_vehicle_model(path: str) -> dict[str, float]:
@@ -94,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
              "(faster-than-real-time runs on a busy machine; off by default)")
     add("--vehicle-model", default=None, metavar="FILE",
         help="YAML file with a vehicle: block (companion identify -o, or a mission): the copter's "
-             "delay, lag, acceleration limit, speed sag and yaw-rate limit (default for a copter: the "
+             "delay, lag, acceleration limit, speed sag, yaw-rate limit and velocity-estimate bias (default for a copter: the "
              "model identified from the chosen autopilot's real firmware, docs/vehicle_model.md)")
     add("--tau-vel-s", type=float, default=None,
         help="velocity lag (default: the vehicle model's; 0.3 for planes and rovers)")
@@ -109,6 +109,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="plane minimum airspeed, the floor of DO_CHANGE_SPEED (default 10)")
     add("--wind-ned-m-s", default="0,0", metavar="N,E",
         help="steady wind north,east (m/s) the plane drifts with (default 0,0)")
+    add("--vel-bias-m-s", type=float, default=None,
+        help="standard deviation of the velocity estimate's bias the copter drifts by, m/s per horizontal axis "
+             "(default: the vehicle model's; 0: none)")
     add("--pos-noise-m", type=float, default=0.0,
         help="standard deviation of the noise on each reported position axis, m (default 0)")
     add("--offboard-loss-s", type=float, default=0.5, help="PX4 COM_OF_LOSS_T")
@@ -133,11 +136,13 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
     if model is None:  # plane, rover: the generic model
         model = {"a_max_m_s2": 3.0 if args.vehicle == "rover" else 5.0, "lag_s": 0.3, "delay_s": 0.0,
                  "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
-                 "yaw_rate_max_deg_s": 120.0 if args.vehicle == "rover" else 90.0}
+                 "yaw_rate_max_deg_s": 120.0 if args.vehicle == "rover" else 90.0,
+                 "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0}
     # An explicit option overrides the model's value.
     a_max = args.a_max_m_s2 if args.a_max_m_s2 is not None else model["a_max_m_s2"]
     yaw_max = args.yaw_rate_max_deg_s if args.yaw_rate_max_deg_s is not None else model["yaw_rate_max_deg_s"]
     tau_vel = args.tau_vel_s if args.tau_vel_s is not None else model["lag_s"]
+    vel_bias = args.vel_bias_m_s if args.vel_bias_m_s is not None else model["vel_bias_m_s"]
     try:
         vehicle = VehicleParams(
             kind=args.vehicle, tau_vel_s=tau_vel, tau_yaw_rate_s=args.tau_yaw_rate_s, a_max_m_s2=a_max,
@@ -147,7 +152,7 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
             airspeed_cruise_m_s=args.airspeed_m_s, airspeed_min_m_s=args.airspeed_min_m_s,
             airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,
             roll_max_rad=math.radians(args.roll_max_deg), wind_ned_m_s=wind, pos_noise_m=args.pos_noise_m,
-            seed=args.seed)
+            vel_bias_m_s=vel_bias, vel_bias_tc_s=model["vel_bias_tc_s"], seed=args.seed)
     except ValueError as err:
         raise ValueError(f"vehicle parameters: {err}") from None
     key = load_signing_key(args.signing_key_file) if args.signing_key_file else None

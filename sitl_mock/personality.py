@@ -90,14 +90,18 @@ ARDUPILOT_STREAM_GROUPS = {
 # ArduCopter SITL (ArduPilot master, default parameters, GUIDED: first order) and PX4 v1.18 SIH
 # (OFFBOARD: first order with a slow tail). The keys are those of the ``vehicle:`` block
 # (``--vehicle-model``). PX4's yaw rate never saturated in its flight: 92 deg/s is the most it was
-# asked for and flew, a lower bound of its limit.
+# asked for and flew, a lower bound of its limit. The velocity-estimate bias is PX4's estimator
+# in SIH (its reported position leaves the integral of its reported velocity at about 0.2 m/s),
+# ArduCopter's a tenth of that.
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
-                      "yaw_rate_max_deg_s")
+                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s")
 IDENTIFIED_COPTER_MODELS = {
     "ardupilot": {"a_max_m_s2": 2.43, "delay_s": 0.173, "lag_s": 0.457, "accel_lag_s": 0.0, "tail_share": 0.0,
-                  "tail_tc_s": 1.0, "speed_sag_s": 0.049, "yaw_rate_max_deg_s": 60.6},
+                  "tail_tc_s": 1.0, "speed_sag_s": 0.049, "yaw_rate_max_deg_s": 60.6,
+                  "vel_bias_m_s": 0.030, "vel_bias_tc_s": 1.63},
     "px4": {"a_max_m_s2": 3.86, "delay_s": 0.119, "lag_s": 0.437, "accel_lag_s": 0.0, "tail_share": 0.857,
-            "tail_tc_s": 0.958, "speed_sag_s": 0.093, "yaw_rate_max_deg_s": 92.3},
+            "tail_tc_s": 0.958, "speed_sag_s": 0.093, "yaw_rate_max_deg_s": 92.3,
+            "vel_bias_m_s": 0.252, "vel_bias_tc_s": 4.29},
 }
 
 

@@ -14,8 +14,14 @@ Copter
     ``yaw_rate_max_rad_s``. Optionally (docs/vehicle_model.md, the model ``companion identify``
     fits): every command acts ``delay_s`` late, the horizontal speed command shrinks in turns by
     ``speed_sag_s`` times the lateral acceleration, and the horizontal acceleration follows the one
-    the velocity loop asks for through a second lag ``accel_lag_s``. A multicopter's velocity controller holds ground velocity, so a steady
-    wind has no lasting effect on the track and is not modelled for copters.
+    the velocity loop asks for through a second lag ``accel_lag_s``. A multicopter's velocity
+    controller holds ground velocity, so a steady wind has no lasting effect on the track and is
+    not modelled for copters. What is modelled is the autopilot's **velocity-estimate bias**
+    (``vel_bias_m_s``, ``vel_bias_tc_s``): the velocity loop holds its estimate, which is off by a
+    slowly varying bias (a Gauss-Markov process on each horizontal axis), so while airborne the
+    copter flies the reported velocity plus that bias, and its reported position (which the
+    estimator ties to GPS) moves away from the integral of the reported velocity, as PX4's does
+    in SIH (docs/vehicle_model.md).
 Plane
     Constant airspeed (never below ``airspeed_min_m_s``), heading turning at ``g tan(roll) / V``
     (coordinated turn, lateral acceleration ``g tan(roll)``), the roll angle following the command
@@ -97,8 +103,12 @@ class VehicleParams:
         Steady horizontal wind (north, east) the plane drifts with.
     pos_noise_m : float
         Standard deviation of the Gaussian noise on each reported position axis.
+    vel_bias_m_s, vel_bias_tc_s : float
+        Copter: the velocity estimate's bias, a first-order Gauss-Markov process on each horizontal
+        axis with this standard deviation (m/s, 0: none) and correlation time (s, > 0); airborne, the
+        vehicle moves at the reported velocity plus the bias.
     seed : int
-        Seed of the noise generator.
+        Seed of the noise generators (position noise, velocity bias).
     """
 
     kind: str = "copter"
@@ -121,19 +131,21 @@ class VehicleParams:
     roll_max_rad: float = math.radians(45.0)
     wind_ned_m_s: tuple[float, float] = (0.0, 0.0)
     pos_noise_m: float = 0.0
+    vel_bias_m_s: float = 0.0
+    vel_bias_tc_s: float = 3.0
     seed: int = 0
 
     def __post_init__(self) -> None:
         if self.kind not in VEHICLE_KINDS:
             raise ValueError(f"vehicle kind: expected one of {', '.join(VEHICLE_KINDS)}, got {self.kind!r}")
         positive = ("a_max_m_s2", "yaw_rate_max_rad_s", "v_max_m_s", "climb_rate_m_s", "descent_rate_m_s",
-                    "airspeed_min_m_s", "roll_max_rad", "tail_tc_s")
+                    "airspeed_min_m_s", "roll_max_rad", "tail_tc_s", "vel_bias_tc_s")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
-                     "speed_sag_s"):
+                     "speed_sag_s", "vel_bias_m_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -197,6 +209,8 @@ class VehicleModel:
             self.state.airspeed_m_s = params.airspeed_cruise_m_s
             self._set_plane_ground_velocity(0.0)
         self._rng = random.Random(params.seed)
+        self._bias_rng = random.Random(f"vel-bias:{params.seed}")  # its own stream: the noise's stays as it was
+        self._bias_ne_m_s = (0.0, 0.0)  # the velocity estimate's bias (what the vehicle flies beyond it)
         self._cmd_queue: deque = deque()
         self._tail_ne_m_s = (0.0, 0.0)  # the low-passed horizontal velocity error of the slow tail
         self._noise_ned_m = (0.0, 0.0, 0.0)
@@ -282,6 +296,8 @@ class VehicleModel:
         s.acc_ned_m_s2 = [dvx / dt_s, dvy / dt_s, dvz / dt_s]
         v_new = [v[0] + dvx, v[1] + dvy, 0.0 if p.kind == "rover" else v[2] + dvz]
         self._move(v, v_new, dt_s)
+        if p.vel_bias_m_s > 0.0 and p.kind == "copter":
+            self._step_bias(dt_s)
         s.vel_ned_m_s = v_new
         if p.kind == "rover":
             s.pos_ned_m[2] = 0.0
@@ -367,6 +383,20 @@ class VehicleModel:
         s.yaw_rate_rad_s = 0.0
         s.t_s += dt_s
         self._draw_noise()
+
+    def _step_bias(self, dt_s: float) -> None:
+        """Advance the velocity estimate's bias (exact discretisation of a first-order Gauss-Markov
+        process) and, airborne, move the vehicle by it: the loop holds the biased estimate."""
+        p = self.params
+        phi = math.exp(-dt_s / p.vel_bias_tc_s)
+        kick = p.vel_bias_m_s * math.sqrt(1.0 - phi * phi)
+        g = self._bias_rng.gauss
+        bn, be = self._bias_ne_m_s
+        bn, be = phi * bn + kick * g(0.0, 1.0), phi * be + kick * g(0.0, 1.0)
+        self._bias_ne_m_s = (bn, be)
+        if not self.state.on_ground:
+            self.state.pos_ned_m[0] += bn * dt_s
+            self.state.pos_ned_m[1] += be * dt_s
 
     def _move(self, v_old: list[float], v_new: list[float], dt_s: float) -> None:
         """Trapezoidal position update: exact for constant acceleration over the step."""

@@ -18,8 +18,7 @@ from companion.errors import CompanionError, LogError
 from companion.guidance.types import VEHICLE_MODEL_KEYS
 
 _DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "tail_share": 3, "tail_tc_s": 3,
-             "speed_sag_s": 3,
-             "yaw_rate_max_deg_s": 1}
+             "speed_sag_s": 3, "yaw_rate_max_deg_s": 1, "vel_bias_m_s": 3, "vel_bias_tc_s": 2}
 
 
 class IdentificationRefused(CompanionError):
@@ -29,7 +28,8 @@ class IdentificationRefused(CompanionError):
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "identify", help="fit the vehicle's response to velocity setpoints from a tlog",
-        description="Fit acceleration limit, delay, lag, speed sag and yaw-rate limit of the vehicle "
+        description="Fit acceleration limit, delay, lag, speed sag, yaw-rate limit and velocity-estimate "
+                    "bias of the vehicle "
                     "from a tlog holding both directions of the link (docs/vehicle_model.md).")
     parser.add_argument("tlog", help="the flight log (companion, MAVProxy or QGroundControl tlog)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")

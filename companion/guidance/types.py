@@ -123,7 +123,7 @@ class GuidanceParams:
 MAX_TAIL_SHARE = 0.95
 #: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
-                      "yaw_rate_max_deg_s")
+                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s")
 
 
 @dataclass(frozen=True)
@@ -151,6 +151,12 @@ class VehicleModel:
         0: no tail). ``0 <= tail_share <= 0.95``, ``tail_tc_s > 0``.
     speed_sag_s : speed lost per unit of lateral acceleration in a turn (m/s per m/s^2), >= 0.
     yaw_rate_max_deg_s : yaw-rate limit, > 0.
+    vel_bias_m_s, vel_bias_tc_s : the autopilot's velocity estimate is off by a slowly varying
+        bias, a first-order Gauss-Markov process on each horizontal axis with this standard
+        deviation (>= 0; 0: none) and correlation time (> 0). The velocity loop holds the
+        estimate, so the vehicle drifts by the bias, and the reported position leaves the integral
+        of the reported velocity. The mock flies it; the guidance and the offline simulator do not
+        use it (it is a disturbance, not a response to the command).
     """
 
     a_max_m_s2: float = 5.0
@@ -161,13 +167,15 @@ class VehicleModel:
     tail_tc_s: float = 1.0
     speed_sag_s: float = 0.0
     yaw_rate_max_deg_s: float = 90.0
+    vel_bias_m_s: float = 0.0
+    vel_bias_tc_s: float = 3.0
 
     def __post_init__(self) -> None:
         for name in VEHICLE_MODEL_KEYS:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise ValueError(f"vehicle.{name}: expected a finite number, got {value!r}")
-            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s", "tail_tc_s")
+            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s", "tail_tc_s", "vel_bias_tc_s")
             if value < 0 or (strict and value == 0):
                 raise ValueError(f"vehicle.{name}: expected a number {'>' if strict else '>='} 0, got {value!r}")
         if self.tail_share > MAX_TAIL_SHARE:

@@ -4,7 +4,8 @@ From any tlog holding both directions of the link (the companion's, MAVProxy's, 
 
 - the velocity setpoints: ``SET_POSITION_TARGET_LOCAL_NED`` in ``MAV_FRAME_LOCAL_NED`` whose
   type mask uses the velocity (the yaw rate too when it is not masked out), at their log time;
-- the vehicle's response: ``LOCAL_POSITION_NED`` velocity and ``ATTITUDE`` yaw speed from the
+- the vehicle's response: ``LOCAL_POSITION_NED`` velocity (and position, for the velocity
+  estimate's bias) and ``ATTITUDE`` yaw speed from the
   system the setpoints address (the source with the most samples when several components send).
 
 The autopilot's ``time_boot_ms`` is mapped onto the log's clock by a straight line fitted to
@@ -64,7 +65,7 @@ def read_identification_samples(path: str | Path) -> Samples:
             setpoints.append((rec.time_s, msg.vx, msg.vy, yaw_rate, msg.target_system))
         elif kind == "LOCAL_POSITION_NED":
             lpn.setdefault((rec.src_system, rec.src_component), []).append(
-                (rec.time_s, msg.time_boot_ms * 1e-3, msg.vx, msg.vy))
+                (rec.time_s, msg.time_boot_ms * 1e-3, msg.vx, msg.vy, msg.x, msg.y))
         elif kind == "ATTITUDE":
             att.setdefault((rec.src_system, rec.src_component), []).append(
                 (rec.time_s, msg.time_boot_ms * 1e-3, msg.yawspeed))
@@ -87,7 +88,7 @@ def read_identification_samples(path: str | Path) -> Samples:
     t_yaw = _log_time(yaw[:, 0], yaw[:, 1]) if len(yaw) else np.zeros(0)
     try:
         return resample(t_cmd_s=sp[:, 0], vel_cmd_ne_m_s=sp[:, 1:3], yaw_rate_cmd_rad_s=sp[:, 3],
-                        t_meas_s=_log_time(m[:, 0], m[:, 1]), vel_meas_ne_m_s=m[:, 2:4],
+                        t_meas_s=_log_time(m[:, 0], m[:, 1]), vel_meas_ne_m_s=m[:, 2:4], pos_meas_ne_m=m[:, 4:6],
                         t_yaw_s=t_yaw, yaw_rate_meas_rad_s=yaw[:, 2] if len(yaw) else np.zeros(0))
     except ValueError as err:
         raise LogError(f"{path}: {err}") from None

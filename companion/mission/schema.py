@@ -381,6 +381,11 @@ MISSION = Object(
                                          "unit of lateral acceleration (m/s per m/s^2)", default=0.0),
                     "yaw_rate_max_deg_s": Field(Number(exclusive_minimum=0, maximum=3600),
                                                 "yaw-rate limit", default=90.0),
+                    "vel_bias_m_s": Field(Number(minimum=0, maximum=10), "standard deviation of the "
+                                          "autopilot's velocity-estimate bias, per horizontal axis "
+                                          "(the mock flies it; the guidance does not use it)", default=0.0),
+                    "vel_bias_tc_s": Field(Number(exclusive_minimum=0, maximum=600), "correlation time "
+                                           "of that bias", default=3.0),
                 },
             ),
             "the vehicle model (absent: the guidance block's rollout_tau_s and a_max_m_s2 alone)"),

@@ -14,7 +14,9 @@ acceleration; in a turn at constant speed, the lateral acceleration)::
     e      = c_d - v,   f += (e - f) (1 - exp(-dt / tail_tc_s))                 (the slow tail)
     dv     = (e - tail_share f) (1 - exp(-dt / lag_s)),   |dv| <= a_max_m_s2 dt  (one step dt)
 
-and the yaw rate follows its command clipped to ``yaw_rate_max_rad_s``.
+and the yaw rate follows its command clipped to ``yaw_rate_max_rad_s``. Apart from the response,
+the velocity estimate's bias (``vel_bias_m_s``, ``vel_bias_tc_s``) is measured from how the
+reported position leaves the integral of the reported velocity (:func:`velocity_bias`).
 
 How it is fitted
 ----------------
@@ -51,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
-from scipy.signal import savgol_filter
+from scipy.signal import lfilter, savgol_filter
 
 from companion.guidance.types import VehicleModel
 
@@ -65,6 +67,13 @@ MIN_TURNING_S = 5.0
 MIN_SAG_TURNING_S = 5.0
 YAW_HOLD_S = 1.0  # a yaw-rate command held this long has had time to be flown
 YAW_SATURATION_MARGIN = 1.2  # command at least 20 % above the flown rate counts as saturating it
+BIAS_LAGS_S = (0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)  # lags at which the velocity bias's drift is measured
+BIAS_BOOTSTRAP_RUNS = 40  # drifts drawn from the fitted bias for its standard errors
+BIAS_BOOTSTRAP_SEED = 0
+BIAS_NEGLIGIBLE_M_S = 0.01  # a velocity bias below this: none to speak of (its time constant is not judged)
+# The bias's correlation time shows only in how the drift bends over seconds, and a few minutes
+# of flight hold a few dozen independent samples of that: it is accepted to this share.
+MAX_RELATIVE_SE_BIAS_TC = 0.5
 
 PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s", "tail_share", "tail_tc_s")
 _LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0, 0.0, 0.05])
@@ -103,15 +112,17 @@ class Samples:
     yaw_rate_cmd_raw_rad_s: np.ndarray  # (M,)
     t_yaw_s: np.ndarray  # measured yaw-rate times
     yaw_rate_rad_s: np.ndarray  # measured yaw rate
+    pos_ne_m: np.ndarray | None = None  # (N, 2) measured position (None: the log has none)
 
 
 def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_s: ArrayLike,
              t_meas_s: ArrayLike, vel_meas_ne_m_s: ArrayLike, t_yaw_s: ArrayLike = (),
-             yaw_rate_meas_rad_s: ArrayLike = (), dt_s: float = GRID_DT_S) -> Samples:
+             yaw_rate_meas_rad_s: ArrayLike = (), pos_meas_ne_m: ArrayLike | None = None,
+             dt_s: float = GRID_DT_S) -> Samples:
     """Put the log's commands and measurements on one grid of step ``dt_s``.
 
     Times are seconds on one clock (the log's). Measured velocities are interpolated linearly
-    onto the grid; a grid point is valid when the newest command is at most
+    onto the grid (so are the measured positions, when given); a grid point is valid when the newest command is at most
     :data:`MAX_COMMAND_GAP_S` old and the measurement brackets it closely.
     """
     t_cmd = np.asarray(t_cmd_s, float)
@@ -127,6 +138,7 @@ def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_
     t_cmd, vc, yc = t_cmd[order], vc[order], yc[order]
     order = np.argsort(tm, kind="stable")
     tm, vm = tm[order], vm[order]
+    pm = None if pos_meas_ne_m is None else np.asarray(pos_meas_ne_m, float).reshape(-1, 2)[order]
     t0 = max(t_cmd[0], tm[0])
     t1 = min(t_cmd[-1], tm[-1])
     if t1 - t0 < 10 * dt_s:
@@ -143,7 +155,93 @@ def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_
     valid[-1] = False
     finite = np.isfinite(v).all(axis=1)
     valid &= finite & np.roll(finite, -1)
-    return Samples(t, v, valid, t_cmd, vc, yc, np.asarray(t_yaw_s, float), np.asarray(yaw_rate_meas_rad_s, float))
+    pos = None if pm is None else np.column_stack([np.interp(t, tm, pm[:, 0]), np.interp(t, tm, pm[:, 1])])
+    return Samples(t, v, valid, t_cmd, vc, yc, np.asarray(t_yaw_s, float), np.asarray(yaw_rate_meas_rad_s, float),
+                   pos)
+
+
+def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
+                  ) -> tuple[float, float, float, float, dict[float, float]]:
+    """The velocity estimate's bias: ``(sigma_m_s, tc_s, se_sigma_m_s, se_tc_s, structure)``.
+
+    On a uniform grid, ``e(t) = p(t) - integral of v`` (reported position minus the integral of
+    the reported velocity) moves only by what the velocity estimate misses. For a bias that is a
+    first-order Gauss-Markov process (standard deviation sigma, correlation time tau) on each
+    axis, the change of ``e`` over a lag ``T`` has the mean square::
+
+        D^2(T) = 2 sigma^2 tau^2 (T / tau - 1 + exp(-T / tau))
+
+    (``sigma T`` for ``T << tau``; a random walk ``2 sigma^2 tau T`` for ``T >> tau``). ``D`` is
+    measured at the lags :data:`BIAS_LAGS_S` (up to a quarter of the valid span), over pairs of
+    samples with every sample between them valid, both axes pooled, and ``(sigma, tau)`` fitted
+    in log space, each lag weighted by its number of independent pairs (one per ``max(T, tau)``).
+    The lags share their samples, so the standard errors are a parametric bootstrap's: the spread
+    of the same fit on :data:`BIAS_BOOTSTRAP_RUNS` drifts drawn from the fitted process over the
+    same samples (seeded: the same log gives the same errors). ``structure``
+    maps each lag ``T`` (s) to the measured ``D`` (m). Pure: arrays in, numbers out.
+    """
+    t = np.asarray(t_s, float)
+    dt = float(t[1] - t[0])
+    ok = np.asarray(valid, bool)
+    v = np.asarray(vel_ne_m_s, float)
+    step = np.zeros_like(v)
+    step[1:] = 0.5 * (v[1:] + v[:-1]) * dt
+    e = np.asarray(pos_ne_m, float) - np.cumsum(step, axis=0)
+    full = _fit_bias(e, ok, dt)
+    if full is None:
+        return 0.0, 3.0, math.inf, math.inf, {}
+    sigma, tau, structure = full
+    # Parametric bootstrap: the same fit on drifts drawn from the fitted process over the same
+    # samples (an AR(1) bias on each axis, integrated); the spread of those fits is the error.
+    rng = np.random.default_rng(BIAS_BOOTSTRAP_SEED)
+    phi = math.exp(-dt / tau)
+    estimates = []
+    for _ in range(BIAS_BOOTSTRAP_RUNS):
+        kicks = rng.standard_normal(e.shape) * sigma * math.sqrt(1.0 - phi * phi)
+        kicks[0] = rng.standard_normal(2) * sigma  # started in the stationary distribution
+        drift = np.cumsum(lfilter([1.0], [1.0, -phi], kicks, axis=0), axis=0) * dt
+        part = _fit_bias(drift, ok, dt)
+        if part is not None:
+            estimates.append(part[:2])
+    if len(estimates) < BIAS_BOOTSTRAP_RUNS // 2:
+        return sigma, tau, math.inf, math.inf, structure
+    se = np.std(np.array(estimates), axis=0, ddof=1)
+    return sigma, tau, float(se[0]), float(se[1]), structure
+
+
+def _fit_bias(e: np.ndarray, ok: np.ndarray, dt: float) -> tuple[float, float, dict[float, float]] | None:
+    """``(sigma, tau, D by lag)`` fitted to the drift ``e`` over the samples ``ok`` (see
+    :func:`velocity_bias`); None when fewer than three lags can be measured."""
+    breaks = np.cumsum(~ok)  # a pair is usable when no invalid sample lies between its ends
+    span = float(ok.sum()) * dt
+    lags, meas, pairs = [], [], []
+    for lag in BIAS_LAGS_S:
+        k = int(round(lag / dt))
+        if k < 1 or lag > span / 4.0:
+            continue
+        use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
+        if use.sum() < 10:
+            continue
+        d = e[k:][use] - e[:-k][use]
+        lags.append(lag)
+        meas.append(float(np.sqrt(np.mean(d * d))))
+        pairs.append(float(use.sum()) * dt)  # seconds of usable pairs (per axis)
+    if len(lags) < 3 or min(meas) <= 0.0:
+        return None
+    lag_a, log_meas, pair_s = np.array(lags), np.log(meas), np.array(pairs)
+
+    def log_d(x: np.ndarray) -> np.ndarray:
+        sigma, tau = np.exp(np.clip(x, -30.0, 30.0))
+        r = lag_a / tau
+        return np.asarray(np.log(np.sqrt(2.0) * sigma * tau) + 0.5 * np.log(np.maximum(r - 1.0 + np.exp(-r), 1e-300)))
+
+    x = np.log([meas[0] / lags[0], 3.0])
+    for _ in range(2):  # the weights depend on tau: fit, then fit again with the fitted tau's
+        # log D from n independent pairs (both axes) has a variance of about 1 / (2 n)
+        w = np.sqrt(2.0 * 2.0 * pair_s / np.maximum(lag_a, math.exp(x[1])))
+        x = least_squares(lambda z, w=w: (log_d(z) - log_meas) * w, x, method="lm").x
+    sigma, tau = (float(v) for v in np.exp(x))
+    return sigma, tau, dict(zip(lags, meas))
 
 
 def _unit_lateral(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -415,13 +513,44 @@ def identify(s: Samples) -> IdentifyResult:
 
     unidentified = _unidentified(excitation, theta, se, yaw_limit, yaw_flown, len(s.t_yaw_s))
     yaw_value = yaw_limit if yaw_limit is not None else max(yaw_flown, math.radians(1.0))
+    bias, bias_tc, bias_se, bias_tc_se = _identify_bias(s, quality, unidentified)
     model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
                          speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
                          tail_share=float(theta[5]), tail_tc_s=float(theta[6]),
-                         yaw_rate_max_deg_s=math.degrees(yaw_value))
+                         yaw_rate_max_deg_s=math.degrees(yaw_value), vel_bias_m_s=bias, vel_bias_tc_s=bias_tc)
     std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
+    std.update({"vel_bias_m_s": bias_se, "vel_bias_tc_s": bias_tc_se})
     return IdentifyResult(model=model, std_errors=std, quality=quality, excitation=excitation,
                           unidentified=unidentified)
+
+
+def _identify_bias(s: Samples, quality: dict[str, float | str], unidentified: dict[str, str]) -> tuple[float, float, float, float]:
+    """The velocity bias of :func:`identify` (value, time constant, their standard errors); adds
+    the measured drift to ``quality`` and what the log cannot pin down to ``unidentified``."""
+    if s.pos_ne_m is None:
+        unidentified["vel_bias_m_s"] = unidentified["vel_bias_tc_s"] = "no positions in the log"
+        return 0.0, 3.0, math.inf, math.inf
+    bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid)
+    quality.update({f"position_drift_{lag:g}s_m": d for lag, d in drift.items()})
+    unidentified.update(_bias_unidentified(bias, tc, se, tc_se, bool(drift)))
+    if bias < BIAS_NEGLIGIBLE_M_S:
+        tc = 3.0  # no bias to speak of: its time constant means nothing; the default
+    return bias, tc, se, tc_se
+
+
+def _bias_unidentified(bias: float, tc: float, se: float, tc_se: float, measured: bool) -> dict[str, str]:
+    """The velocity bias's parameters the log cannot pin down (see :func:`velocity_bias`)."""
+    if not measured:
+        why = "too little flight under velocity setpoints to measure the position's drift (expected 1 s at least)"
+        return {"vel_bias_m_s": why, "vel_bias_tc_s": why}
+    out = {}
+    if not se <= MAX_RELATIVE_SE * max(bias, BIAS_NEGLIGIBLE_M_S):
+        out["vel_bias_m_s"] = (f"standard error {se:.3g} is more than {MAX_RELATIVE_SE:.0%} of the value "
+                               f"{bias:.3g}: the log does not pin it down")
+    if bias >= BIAS_NEGLIGIBLE_M_S and not tc_se <= MAX_RELATIVE_SE_BIAS_TC * tc:
+        out["vel_bias_tc_s"] = (f"standard error {tc_se:.3g} is more than {MAX_RELATIVE_SE_BIAS_TC:.0%} of the "
+                                f"value {tc:.3g}: fly longer (minutes) to pin it down")
+    return out
 
 
 def _unidentified(excitation: dict[str, float], theta: np.ndarray, se: np.ndarray, yaw_limit: float | None,

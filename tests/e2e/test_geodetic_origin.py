@@ -69,7 +69,9 @@ def start_mock(port, start_ned, extra=()):
         "--speedup", f"{SPEEDUP:g}", f"--start-ned={start_ned[0]},{start_ned[1]}",
         "--start-alt-m", "10", "--start-yaw-deg=90", "--start-airborne",
         "--origin", f"{MOCK_LAT_DEG},{MOCK_LON_DEG},{MOCK_ALT_M}", "--quiet",
-        "--offboard-loss-s", str(SPEEDUP), "--pace-lead-s", "0.04", *extra,
+        "--offboard-loss-s", str(SPEEDUP), "--pace-lead-s", "0.04",
+        "--vel-bias-m-s", "0",  # the frames are the subject here: no estimator drift in the track
+        *extra,
     ])
     mock.start(timeout_s=60.0)
     return mock

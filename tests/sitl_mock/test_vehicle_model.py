@@ -220,3 +220,37 @@ def test_the_slow_tail_share_is_bounded():
         VehicleParams(kind="copter", tail_share=0.99)
     with pytest.raises(ValueError, match="tail_tc_s"):
         VehicleParams(kind="copter", tail_share=0.5, tail_tc_s=0.0)
+
+
+def test_velocity_estimate_bias_drifts_the_position_as_a_gauss_markov_process():
+    # The loop holds its (biased) velocity estimate at the command, so the reported velocity stays
+    # at 0 while the position drifts by the bias. For a first-order Gauss-Markov bias (sigma, tau)
+    # the position change over T has the mean square 2 sigma^2 tau^2 (T/tau - 1 + exp(-T/tau))
+    # per axis; 2000 s hold 500 independent windows of tau per axis, so the measured RMS lies
+    # within 10 % of the closed form (about 3 standard errors at the longest lag).
+    sigma, tau, dt, seconds = 0.25, 4.0, 0.02, 2000.0
+    model = copter(vel_bias_m_s=sigma, vel_bias_tc_s=tau, seed=11)
+    n = round(seconds / dt)
+    north, east = [], []
+    for _ in range(n):
+        model.step_multirotor(dt, (0.0, 0.0, 0.0), 0.0)
+        north.append(model.state.pos_ned_m[0])
+        east.append(model.state.pos_ned_m[1])
+    assert max(abs(v) for v in model.state.vel_ned_m_s) < 1e-12
+    for lag_s in (1.0, 10.0):
+        k = round(lag_s / dt)
+        sq = [(a[i + k] - a[i]) ** 2 for a in (north, east) for i in range(n - k)]
+        measured = math.sqrt(sum(sq) / len(sq))
+        r = lag_s / tau
+        expected = math.sqrt(2.0 * sigma**2 * tau**2 * (r - 1.0 + math.exp(-r)))
+        assert measured == pytest.approx(expected, rel=0.1), (lag_s, measured, expected)
+
+
+def test_velocity_estimate_bias_does_not_move_a_copter_on_the_ground():
+    model = VehicleModel(VehicleParams(kind="copter", vel_bias_m_s=0.5, vel_bias_tc_s=1.0), (0.0, 0.0, 0.0), 0.0,
+                         airborne=False)
+    for _ in range(500):
+        model.step_multirotor(0.02, (0.0, 0.0, 0.0), 0.0, grounded=True)
+    for _ in range(500):
+        model.step_multirotor(0.02, (0.0, 0.0, 0.0), 0.0)  # motors on, nothing asked: still on the ground
+    assert model.state.pos_ned_m == [0.0, 0.0, 0.0]

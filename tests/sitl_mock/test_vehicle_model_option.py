@@ -21,6 +21,7 @@ def test_a_copter_flies_the_model_identified_from_its_autopilot_by_default(autop
     assert (vp.tau_vel_s, vp.a_max_m_s2, vp.delay_s, vp.speed_sag_s) == (
         model["lag_s"], model["a_max_m_s2"], model["delay_s"], model["speed_sag_s"])
     assert vp.yaw_rate_max_rad_s == pytest.approx(math.radians(model["yaw_rate_max_deg_s"]))
+    assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (model["vel_bias_m_s"], model["vel_bias_tc_s"])
 
 
 def test_a_rover_keeps_the_generic_model():
@@ -37,6 +38,11 @@ def test_the_vehicle_model_file_sets_the_model_and_options_override_single_value
     assert vp.yaw_rate_max_rad_s == pytest.approx(math.radians(60.0))
     vp = config("--vehicle-model", str(f), "--a-max-m-s2", "4").vehicle_params
     assert (vp.a_max_m_s2, vp.tau_vel_s) == (4.0, 0.4)
+    assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (0.0, 3.0)  # the file has no bias: none
+    f.write_text(f.read_text() + "  vel_bias_m_s: 0.2\n  vel_bias_tc_s: 5\n")
+    vp = config("--vehicle-model", str(f)).vehicle_params
+    assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (0.2, 5.0)
+    assert config("--vehicle-model", str(f), "--vel-bias-m-s", "0").vehicle_params.vel_bias_m_s == 0.0
 
 
 @pytest.mark.parametrize("text, expected", [
