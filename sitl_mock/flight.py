@@ -441,6 +441,11 @@ class FlightLogic:
         v_ned = convert(vel, ign_vel, False)
         a_ned = convert(acc, ign_acc, False)
         expires = (not self.pers.is_px4) and all(v is None for v in p_ned)
+        if (not self.pers.is_px4 and self.mode.behaviour == "guided" and self._takeoff_alt_m is not None
+                and not s.on_ground):
+            # ArduCopter: a target during a GUIDED take-off ends it (ModeGuided::set_velaccel and
+            # set_destination switch the sub-mode from TakeOff at once); the target is flown from here.
+            self._takeoff_alt_m = None
         self.setpoint = Setpoint(
             pos_ned_m=p_ned, vel_ned_m_s=v_ned, acc_ned_m_s2=a_ned,
             yaw_rad=float(yaw) if use_yaw else None, yaw_rate_rad_s=float(yaw_rate) if use_yaw_rate else None,

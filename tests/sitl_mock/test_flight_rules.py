@@ -164,6 +164,25 @@ def test_arducopter_takeoff_needs_guided_and_armed_then_climbs_and_hovers():
     assert f.mode.name == "GUIDED"
 
 
+def test_a_velocity_target_during_an_arducopter_guided_takeoff_ends_it_at_once():
+    # ArduCopter's GUIDED switches from its TakeOff sub-mode to velocity control on the first
+    # target (the real SITL, companion started at 90 % of the take-off height, was moving at
+    # 1.5 m/s 1 s later); the mock used to finish the climb first, 1.3 s without moving.
+    f = make("ardupilot", airborne=False)
+    f.set_mode(f.pers.mode_named("GUIDED"))
+    assert f.arm(True) == fl.MAV_RESULT_ACCEPTED
+    assert f.takeoff(30.0, 0.0) == fl.MAV_RESULT_ACCEPTED
+    advance(f, 6.0)
+    alt = -f.model.state.pos_ned_m[2]
+    assert 5.0 < alt < 25.0  # climbing
+    advance(f, 1.5, vel_setpoint(5.0, 0.0, 0.0))
+    s = f.model.state
+    assert s.vel_ned_m_s[0] > 2.0  # the lag alone: 5 (1 - exp(-(1.5 - 0.173) / 0.457)) = 4.7 m/s, limited to 2.43 m/s^2
+    assert abs(s.vel_ned_m_s[2]) < 0.5  # the climb is over: vz follows the target's 0
+    assert -s.pos_ned_m[2] < 30.0 - 1.0  # and it never reached the take-off height
+    assert f.mode.name == "GUIDED"
+
+
 def test_px4_takeoff_altitude_is_amsl_and_ends_in_hold():
     f = make("px4", airborne=False)
     assert f.arm(True) == fl.MAV_RESULT_ACCEPTED
