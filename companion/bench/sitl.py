@@ -9,7 +9,9 @@
 For each autopilot given, the bench starts the mock with that autopilot's personality (its
 copter flies the model identified from that firmware, docs/vehicle_model.md) and then the real
 SITL binary, and runs ``companion fly MISSION --arm`` against each, from the ground at the local
-origin, for the same flight time. It prints the shared metric names of each flight
+origin, for the same flight time. The mock's copter flies a random velocity-estimate bias, as the
+real PX4's does: ``--mock-seeds N`` flies it N times (seeds 0..N-1) and reports each metric's
+median, with the spread of ``d_rms_m``. It prints the shared metric names of each flight
 (``d_rms_m``, ``d_max_m``, ``a_rms_m_s2``, ``a_max_m_s2`` over the whole flight, capture
 included; ``d_rms_close_m`` over the close-range phase; ``d_rms_settled_m`` from 30 s of guidance
 on; ``sat_share``: the share of ticks whose command reaches the acceleration limit, the mission's or
@@ -186,15 +188,33 @@ class Process:
         self._log.close()
 
 
-def mock_cmd(target: Target, port: int, duration_s: float) -> list[str]:
+def mock_cmd(target: Target, port: int, duration_s: float, seed: int = 0) -> list[str]:
     """The mock standing in for ``target``: its autopilot's copter personality (which flies the model
-    identified from that firmware), on the ground, facing where the real SITL's vehicle starts."""
+    identified from that firmware, its velocity-estimate bias drawn with ``seed``), on the ground,
+    facing where the real SITL's vehicle starts."""
     return [sys.executable, "-m", "sitl_mock", "--autopilot", target.autopilot, "--vehicle", "copter",
             "--link", f"udpout:127.0.0.1:{port}", "--quiet", "--duration-s", f"{duration_s:.0f}",
-            f"--start-yaw-deg={target.start_yaw_deg:g}"]
+            f"--start-yaw-deg={target.start_yaw_deg:g}", "--seed", str(seed)]
 
 
-def fly_on(target: Target, real: bool, mission: str, fly_opts: list[str], workdir: Path, timeout_s: float) -> dict:
+def median_row(rows: list[dict]) -> dict:
+    """Each metric's median over the flights that ran (the mock flown with several seeds); the
+    first failure when none ran."""
+    ran = [r for r in rows if "error" not in r]
+    if not ran:
+        return rows[0]
+    out: dict = {}
+    for key in METRICS:
+        values = sorted(r[key] for r in ran if r.get(key) is not None)
+        if values:
+            n = len(values)
+            out[key] = values[n // 2] if n % 2 else 0.5 * (values[n // 2 - 1] + values[n // 2])
+    out["exit"] = ran[0].get("exit")
+    return out
+
+
+def fly_on(target: Target, real: bool, mission: str, fly_opts: list[str], workdir: Path, timeout_s: float,
+           seed: int = 0) -> dict:
     """Start the mock (``real`` False) or the binary, wait for it, fly the mission, stop it."""
     workdir.mkdir(parents=True, exist_ok=True)
     if real:
@@ -203,7 +223,7 @@ def fly_on(target: Target, real: bool, mission: str, fly_opts: list[str], workdi
             cmd = [*cmd, "-w", str(workdir)]
     else:
         port = _free_port()
-        cmd = mock_cmd(target, port, timeout_s + 30.0)
+        cmd = mock_cmd(target, port, timeout_s + 30.0, seed)
         env, warmup_s = {"PYTHONPATH": str(Path(__file__).resolve().parents[2])}, 1.0
     proc = Process(cmd, workdir, env)
     try:
@@ -243,13 +263,20 @@ def run_bench(args, targets: list[Target]) -> dict:
     root = Path(args.workdir or tempfile.mkdtemp(prefix="bench-sitl-"))
     out: dict = {"mission": args.mission, "method": args.method,
                  "max_duration_s": args.max_duration_s, "speedup": args.speedup, "autopilots": {}}
+    seeds = range(args.mock_seeds)
+    out["mock_seeds"] = args.mock_seeds
     for t in targets:
-        mock = flight_row(fly_on(t, False, mission, opts, root / f"{t.autopilot}-mock", timeout_s), limit)
+        runs = [flight_row(fly_on(t, False, mission, opts, root / f"{t.autopilot}-mock" / f"seed-{k}", timeout_s, k),
+                           limit) for k in seeds]
+        mock = median_row(runs)
         real = flight_row(fly_on(t, True, mission, opts, root / f"{t.autopilot}-real", timeout_s), limit)
         ratio = None
         if mock.get("d_rms_m") and real.get("d_rms_m") is not None:
             ratio = real["d_rms_m"] / mock["d_rms_m"]
-        out["autopilots"][t.autopilot] = {"mock": mock, "real": real, "d_rms_ratio_real_mock": ratio}
+        entry = {"mock": mock, "real": real, "d_rms_ratio_real_mock": ratio}
+        if len(runs) > 1:
+            entry["mock_runs"] = runs
+        out["autopilots"][t.autopilot] = entry
     return out
 
 
@@ -270,8 +297,9 @@ def format_table(result: dict) -> str:
     """The two flights of each autopilot side by side."""
     lines = [f"mission {result['mission']} (method {result['method'] or 'as in the mission'}), "
              f"{result['max_duration_s']:g} s, speed-up {result['speedup']:g}"]
+    seeds = result.get("mock_seeds", 1)
     for ap, r in result["autopilots"].items():
-        lines.append(f"{'':16s}{'mock':>12s}{'real ' + ap:>16s}")
+        lines.append(f"{'':16s}{'mock' if seeds == 1 else f'mock (median of {seeds})':>12s}{'real ' + ap:>16s}")
         for k in METRICS:
             lines.append(f"{k:16s}{_cell(r['mock'], k):>12s}{_cell(r['real'], k):>16s}")
         for side in ("mock", "real"):
@@ -279,6 +307,9 @@ def format_table(result: dict) -> str:
                 lines.append(f"{side}: {r[side]['error']}")
         ratio = r["d_rms_ratio_real_mock"]
         lines.append(f"d_rms real / mock: {'-' if ratio is None else f'{ratio:.2f}'}")
+        runs = [x["d_rms_m"] for x in r.get("mock_runs", []) if x.get("d_rms_m") is not None]
+        if runs:
+            lines.append(f"mock d_rms_m over its {len(runs)} seeds: {min(runs):.3f} to {max(runs):.3f}")
     return "\n".join(lines)
 
 
@@ -304,6 +335,9 @@ def register(subparsers) -> None:
     p.add_argument("--max-duration-s", type=float, default=90.0, help="flight time of each flight (default 90)")
     p.add_argument("--warmup-s", type=float, help="wait after starting a binary (default: 50 / speed-up ArduCopter, 10 PX4)")
     p.add_argument("--a-limit-m-s2", type=float, help="limit for sat_share (default: the mission's vehicle/guidance limit)")
+    p.add_argument("--mock-seeds", type=int, default=1, metavar="N",
+                   help="fly the mock N times, with seeds 0..N-1 of its velocity-estimate bias, and report "
+                        "each metric's median (default 1)")
     p.add_argument("--workdir", help="where the flights' logs go (default: a new temporary directory)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
@@ -312,6 +346,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     if not (args.max_duration_s > 0 and args.speedup > 0):
         raise CompanionError("bench sitl: --max-duration-s and --speedup: expected numbers > 0")
+    if args.mock_seeds < 1:
+        raise CompanionError(f"bench sitl: --mock-seeds: expected an integer >= 1, got {args.mock_seeds}")
     targets = check_binaries(args)
     result = run_bench(args, targets)
     print(json.dumps(result, indent=2) if args.json else format_table(result))

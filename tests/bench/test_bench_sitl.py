@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from companion.bench.sitl import arducopter_target, format_table, log_figures, mock_cmd, px4_target
+from companion.bench.sitl import arducopter_target, format_table, log_figures, median_row, mock_cmd, px4_target
 from companion.cli.main import main
 from companion.guidance.types import GuidanceOutput
 from companion.io.state import PositionSample
@@ -101,3 +101,21 @@ def test_saturation_is_counted_over_the_flight_and_after_30_s_against_the_limit_
     assert figures["sat_share"] == pytest.approx(11 / 40)
     assert figures["sat_share_settled"] == pytest.approx(1 / 10)
     assert figures["d_rms_settled_m"] == pytest.approx(0.1)
+
+
+def test_a_mock_flown_with_several_seeds_reports_each_metric_s_median_and_the_spread():
+    rows = [{"d_rms_m": v, "d_max_m": 10 * v, "a_rms_m_s2": 1.0, "exit": "max duration"} for v in (0.3, 0.1, 0.2)]
+    rows.append({"error": "companion fly exited 1"})
+    median = median_row(rows)
+    assert median["d_rms_m"] == 0.2 and median["d_max_m"] == 2.0 and median["a_rms_m_s2"] == 1.0
+    assert median_row(rows[:2])["d_rms_m"] == pytest.approx(0.2)  # even count: the mean of the middle two
+    assert median_row([{"error": "x"}]) == {"error": "x"}
+    result = {"mission": "m.yaml", "method": "corrector", "max_duration_s": 60.0, "speedup": 1.0, "mock_seeds": 3,
+              "autopilots": {"px4": {"mock": median, "real": {"d_rms_m": 0.25}, "d_rms_ratio_real_mock": 1.25,
+                                     "mock_runs": rows}}}
+    text = format_table(result)
+    assert "mock (median of 3)" in text and "mock d_rms_m over its 3 seeds: 0.100 to 0.300" in text
+    # the seed reaches the mock
+    target = px4_target("px4", "etc", None)
+    argv = mock_cmd(target, 14999, 60.0, seed=7)[3:]
+    assert config_from_args(build_parser().parse_args(argv)).seed == 7
