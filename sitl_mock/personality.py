@@ -91,7 +91,7 @@ ARDUPILOT_STREAM_GROUPS = {
 # (OFFBOARD: first order with a slow tail). The keys are those of the ``vehicle:`` block
 # (``--vehicle-model``). PX4's yaw rate never saturated in its flight: 92 deg/s is the most it was
 # asked for and flew, a lower bound of its limit. The velocity-estimate bias is PX4's estimator
-# in SIH (its reported position leaves the integral of its reported velocity at about 0.2 m/s),
+# in SIH (its reported position leaves the integral of its reported velocity at about 0.25 m/s),
 # ArduCopter's a tenth of that.
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
                       "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s")

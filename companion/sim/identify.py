@@ -121,9 +121,9 @@ def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_
              dt_s: float = GRID_DT_S) -> Samples:
     """Put the log's commands and measurements on one grid of step ``dt_s``.
 
-    Times are seconds on one clock (the log's). Measured velocities are interpolated linearly
-    onto the grid (so are the measured positions, when given); a grid point is valid when the newest command is at most
-    :data:`MAX_COMMAND_GAP_S` old and the measurement brackets it closely.
+    Times are seconds on one clock (the log's). Measured velocities (and positions, when given)
+    are interpolated linearly onto the grid; a grid point is valid when the newest command is at
+    most :data:`MAX_COMMAND_GAP_S` old and the measurement brackets it closely.
     """
     t_cmd = np.asarray(t_cmd_s, float)
     vc = np.asarray(vel_cmd_ne_m_s, float).reshape(-1, 2)
