@@ -134,10 +134,8 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
     else:
         model = Personality(args.autopilot, args.vehicle).default_vehicle_model
     if model is None:  # plane, rover: the generic model
-        model = {"a_max_m_s2": 3.0 if args.vehicle == "rover" else 5.0, "lag_s": 0.3, "delay_s": 0.0,
-                 "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
-                 "yaw_rate_max_deg_s": 120.0 if args.vehicle == "rover" else 90.0,
-                 "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0}
+        model = {**_MODEL_DEFAULTS, "a_max_m_s2": 3.0 if args.vehicle == "rover" else 5.0, "lag_s": 0.3,
+                 "yaw_rate_max_deg_s": 120.0 if args.vehicle == "rover" else 90.0}
     # An explicit option overrides the model's value.
     a_max = args.a_max_m_s2 if args.a_max_m_s2 is not None else model["a_max_m_s2"]
     yaw_max = args.yaw_rate_max_deg_s if args.yaw_rate_max_deg_s is not None else model["yaw_rate_max_deg_s"]

@@ -32,6 +32,7 @@ import json
 import math
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -205,10 +206,9 @@ def median_row(rows: list[dict]) -> dict:
         return rows[0]
     out: dict = {}
     for key in METRICS:
-        values = sorted(r[key] for r in ran if r.get(key) is not None)
+        values = [r[key] for r in ran if r.get(key) is not None]
         if values:
-            n = len(values)
-            out[key] = values[n // 2] if n % 2 else 0.5 * (values[n // 2 - 1] + values[n // 2])
+            out[key] = statistics.median(values)
     out["exit"] = ran[0].get("exit")
     return out
 

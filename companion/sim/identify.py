@@ -70,6 +70,7 @@ YAW_SATURATION_MARGIN = 1.2  # command at least 20 % above the flown rate counts
 BIAS_LAGS_S = (0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)  # lags at which the velocity bias's drift is measured
 BIAS_BOOTSTRAP_RUNS = 40  # drifts drawn from the fitted bias for its standard errors
 BIAS_BOOTSTRAP_SEED = 0
+NO_BIAS_TC_S = VehicleModel().vel_bias_tc_s  # the time constant written where there is no bias
 BIAS_NEGLIGIBLE_M_S = 0.01  # a velocity bias below this: none to speak of (its time constant is not judged)
 # The bias's correlation time shows only in how the drift bends over seconds, and a few minutes
 # of flight hold a few dozen independent samples of that: it is accepted to this share.
@@ -189,7 +190,7 @@ def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray,
     e = np.asarray(pos_ne_m, float) - np.cumsum(step, axis=0)
     full = _fit_bias(e, ok, dt)
     if full is None:
-        return 0.0, 3.0, math.inf, math.inf, {}
+        return 0.0, NO_BIAS_TC_S, math.inf, math.inf, {}
     sigma, tau, structure = full
     # Parametric bootstrap: the same fit on drifts drawn from the fitted process over the same
     # samples (an AR(1) bias on each axis, integrated); the spread of those fits is the error.
@@ -529,12 +530,12 @@ def _identify_bias(s: Samples, quality: dict[str, float | str], unidentified: di
     the measured drift to ``quality`` and what the log cannot pin down to ``unidentified``."""
     if s.pos_ne_m is None:
         unidentified["vel_bias_m_s"] = unidentified["vel_bias_tc_s"] = "no positions in the log"
-        return 0.0, 3.0, math.inf, math.inf
+        return 0.0, NO_BIAS_TC_S, math.inf, math.inf
     bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid)
     quality.update({f"position_drift_{lag:g}s_m": d for lag, d in drift.items()})
     unidentified.update(_bias_unidentified(bias, tc, se, tc_se, bool(drift)))
     if bias < BIAS_NEGLIGIBLE_M_S:
-        tc = 3.0  # no bias to speak of: its time constant means nothing; the default
+        tc = NO_BIAS_TC_S  # no bias to speak of: its time constant means nothing
     return bias, tc, se, tc_se
 
 
