@@ -26,6 +26,7 @@ from sitl_mock.personality import (
     MSG_GPS_GLOBAL_ORIGIN, MSG_GPS_RAW_INT, MSG_HOME_POSITION, MSG_LOCAL_POSITION_NED, MSG_POSITION_TARGET_LOCAL_NED, MSG_SYS_STATUS,
     MSG_SYSTEM_TIME, MSG_VFR_HUD, PX4_DEFAULT_STREAMS_HZ, STREAMABLE_MSG_IDS, Personality,
 )
+from sitl_mock.posctl import PosControlParams
 from sitl_mock.vehicle import VehicleModel, VehicleParams
 
 EARTH_RADIUS_M = 6378137.0
@@ -74,6 +75,7 @@ class MockConfig:
     ekf_origin: bool = True  # False: the estimator has no global origin (no GPS): no GPS_GLOBAL_ORIGIN
     pace_lead_s: float | None = None  # wait for a setpoint client lagging more than this (simulated s)
     vehicle_params: VehicleParams = field(default_factory=VehicleParams)
+    posctl: PosControlParams | None = None  # ArduCopter's position controller flies GUIDED velocity targets
     offboard_loss_s: float = 0.5
     guided_timeout_s: float = 3.0
     signing_key: bytes | None = None
@@ -102,6 +104,8 @@ class MockConfig:
                 raise ValueError(f"--origin: latitude/longitude out of range: {self.origin}")
         if self.signing_key is not None and len(self.signing_key) != 32:
             raise ValueError("signing key: expected 32 bytes")
+        if self.posctl is not None and (self.autopilot, self.vehicle) != ("ardupilot", "copter"):
+            raise ValueError("ArduCopter's position controller: only the ardupilot copter personality has it")
         if self.pace_lead_s is not None and not (math.isfinite(self.pace_lead_s) and self.pace_lead_s > 0):
             raise ValueError(f"--pace-lead-s: expected a positive number, got {self.pace_lead_s}")
 
@@ -150,12 +154,15 @@ class MockAutopilot:
         start = (config.start_ned_m[0], config.start_ned_m[1], -config.start_alt_m)
         vp = config.vehicle_params
         self.model = VehicleModel(vp, start, math.radians(config.start_yaw_deg), config.start_airborne)
+        # With ArduCopter's position controller, WPNAV_ACCEL is the limit its trajectory keeps to.
+        a_max_param = config.posctl.accel_max_m_s2 if config.posctl is not None else vp.a_max_m_s2
         self.params = self.pers.default_params(
-            config.sysid, config.offboard_loss_s, config.guided_timeout_s, vp.a_max_m_s2,
+            config.sysid, config.offboard_loss_s, config.guided_timeout_s, a_max_param,
             math.degrees(vp.yaw_rate_max_rad_s), vp.v_max_m_s,
             (vp.airspeed_cruise_m_s, vp.airspeed_min_m_s, vp.airspeed_max_m_s), math.degrees(vp.roll_max_rad))
         self.home_ned_m = (config.start_ned_m[0], config.start_ned_m[1], 0.0)
-        self.flight = FlightLogic(self.pers, self.model, self.params, config.start_airborne, self.home_ned_m)
+        self.flight = FlightLogic(self.pers, self.model, self.params, config.start_airborne, self.home_ned_m,
+                                  config.posctl)
         self._heartbeat_next_s = 0.0
         for link in self.links:
             if self.pers.streams_by_default:

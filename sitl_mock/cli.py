@@ -16,6 +16,7 @@ import threading
 from sitl_mock.autopilot import MockAutopilot, MockConfig
 from sitl_mock.links import load_signing_key, parse_link
 from sitl_mock.personality import VEHICLE_MODEL_KEYS, Personality
+from sitl_mock.posctl import PosControlParams
 from sitl_mock.vehicle import VehicleParams
 
 # Keys of the vehicle: block a model must give (the others default as in a mission).
@@ -96,6 +97,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="YAML file with a vehicle: block (companion identify -o, or a mission): the copter's "
              "delay, lag, acceleration limit, speed sag, yaw-rate limit and velocity-estimate bias (default for a copter: the "
              "model identified from the chosen autopilot's real firmware, docs/vehicle_model.md)")
+    add("--no-posctl", action="store_true",
+        help="ArduPilot copter: fly GUIDED velocity targets through the vehicle model's own response instead of "
+             "ArduCopter's position controller (emulated by default, unless --vehicle-model, --tau-vel-s or "
+             "--a-max-m-s2 is given: docs/sitl_mock.md)")
     add("--tau-vel-s", type=float, default=None,
         help="velocity lag (default: the vehicle model's; 0.3 for planes and rovers)")
     add("--tau-yaw-rate-s", type=float, default=0.3,
@@ -153,12 +158,17 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
             vel_bias_m_s=vel_bias, vel_bias_tc_s=model["vel_bias_tc_s"], seed=args.seed)
     except ValueError as err:
         raise ValueError(f"vehicle parameters: {err}") from None
+    # A real ArduCopter flies GUIDED velocity targets through its position controller; a model given
+    # explicitly (file or options) is flown as it is.
+    explicit_model = args.vehicle_model is not None or args.tau_vel_s is not None or args.a_max_m_s2 is not None
+    emulate = (args.autopilot, args.vehicle) == ("ardupilot", "copter") and not (args.no_posctl or explicit_model)
     key = load_signing_key(args.signing_key_file) if args.signing_key_file else None
     return MockConfig(
         autopilot=args.autopilot, vehicle=args.vehicle, links=links, sysid=args.sysid, compid=args.compid,
         speedup=args.speedup, physics_hz=args.physics_hz, seed=args.seed, start_ned_m=start_ned,
         start_alt_m=args.start_alt_m, start_yaw_deg=args.start_yaw_deg, start_airborne=args.start_airborne,
-        origin=origin, ekf_origin=not args.no_ekf_origin, pace_lead_s=args.pace_lead_s, vehicle_params=vehicle, offboard_loss_s=args.offboard_loss_s,
+        origin=origin, ekf_origin=not args.no_ekf_origin, pace_lead_s=args.pace_lead_s, vehicle_params=vehicle,
+        posctl=PosControlParams() if emulate else None, offboard_loss_s=args.offboard_loss_s,
         guided_timeout_s=args.guided_timeout_s, signing_key=key, tlog_path=args.tlog, duration_s=args.duration_s,
         quiet=args.quiet)
 

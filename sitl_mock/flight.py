@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass
 
 from sitl_mock.personality import Mode, Personality
+from sitl_mock.posctl import NEPositionController, PosControlParams
 from sitl_mock.vehicle import GRAVITY_M_S2, VehicleModel, wrap_pi
 
 MAV_RESULT_ACCEPTED = 0
@@ -128,10 +129,13 @@ class FlightLogic:
         Start armed, flying, in the hold mode.
     home_ned_m : tuple of float
         Home (north, east, down); RTL returns here.
+    posctl : PosControlParams, optional
+        Fly horizontal velocity targets in GUIDED through ArduCopter's position controller
+        (``sitl_mock.posctl``) instead of the vehicle model's own response.
     """
 
     def __init__(self, personality: Personality, model: VehicleModel, params: dict, start_airborne: bool,
-                 home_ned_m: tuple[float, float, float]) -> None:
+                 home_ned_m: tuple[float, float, float], posctl: PosControlParams | None = None) -> None:
         self.pers = personality
         self.model = model
         self.params = params
@@ -151,6 +155,8 @@ class FlightLogic:
         self._loiter_center_ned_m = (s.pos_ned_m[0], s.pos_ned_m[1])
         self._alt_target_m = -s.pos_ned_m[2]
         self._yaw_hold_rad = s.yaw_rad
+        self.posctl = NEPositionController(posctl) if posctl is not None else None
+        self._posctl_flying = False  # the position controller's trajectory is running
         p = model.params
         self.speed_limit_m_s = p.v_max_m_s
         self.airspeed_target_m_s = p.airspeed_cruise_m_s
@@ -559,7 +565,9 @@ class FlightLogic:
         behaviour = self.mode.behaviour
         vel = [0.0, 0.0, 0.0]
         acc_ff = (0.0, 0.0, 0.0)
+        acc_ne = None
         yaw_rate = 0.0
+        posctl_flying, self._posctl_flying = self._posctl_flying, False
         if not self.armed:
             if s.on_ground:
                 self.model.step_multirotor(dt_s, (0.0, 0.0, 0.0), 0.0, grounded=True)
@@ -578,6 +586,13 @@ class FlightLogic:
                 yaw_rate = self._yaw_rate_to(self._yaw_hold_rad)
             else:
                 vel, acc_ff, yaw_rate = self._follow(sp)
+                if self.posctl is not None and sp.pos_ned_m[0] is None and sp.vel_ned_m_s[0] is not None:
+                    # ArduCopter GUIDED velocity control: its trajectory starts where the vehicle is.
+                    pos_ne, vel_ne = (s.pos_ned_m[0], s.pos_ned_m[1]), (s.vel_ned_m_s[0], s.vel_ned_m_s[1])
+                    if not posctl_flying:
+                        self.posctl.reset(pos_ne, vel_ne, (s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]))
+                    acc_ne = self.posctl.update(dt_s, (vel[0], vel[1]), pos_ne, vel_ne)
+                    self._posctl_flying = True
         elif behaviour in ("hold", "manual", "mission"):
             if s.on_ground:
                 vel = [0.0, 0.0, 0.0]
@@ -591,7 +606,7 @@ class FlightLogic:
             yaw_rate = self._yaw_rate_to(self._yaw_hold_rad)
         elif behaviour == "rtl":
             vel = self._rtl_multirotor()
-        self.model.step_multirotor(dt_s, tuple(vel), yaw_rate, acc_ff)
+        self.model.step_multirotor(dt_s, tuple(vel), yaw_rate, acc_ff, acc_ne_m_s2=acc_ne)
 
     def _follow(self, sp: Setpoint) -> tuple[list[float], tuple, float]:
         """Velocity command, acceleration feed-forward and yaw-rate command from a guided setpoint."""

@@ -238,7 +238,8 @@ class VehicleModel:
 
     # ------------------------------------------------------------------ copter and rover
     def step_multirotor(self, dt_s: float, vel_cmd_ned_m_s: tuple[float, float, float], yaw_rate_cmd_rad_s: float,
-                        acc_ff_ned_m_s2: tuple[float, float, float] = (0.0, 0.0, 0.0), grounded: bool = False) -> None:
+                        acc_ff_ned_m_s2: tuple[float, float, float] = (0.0, 0.0, 0.0), grounded: bool = False,
+                        acc_ne_m_s2: tuple[float, float] | None = None) -> None:
         """Advance a copter or rover by one step.
 
         Parameters
@@ -253,6 +254,10 @@ class VehicleModel:
             Acceleration feed-forward added to the lag response (then limited).
         grounded : bool
             Motors off (disarmed): the vehicle stays where it is if it is on the ground.
+        acc_ne_m_s2 : tuple of float, optional
+            The horizontal acceleration to fly, as an autopilot's own position controller produced
+            it (``sitl_mock.posctl``): the horizontal velocity command and this model's horizontal
+            response (lag, limit, sag, tail, second lag) are then not used.
         """
         p = self.params
         s = self.state
@@ -287,7 +292,9 @@ class VehicleModel:
             dvx *= dv_max / dv_h
             dvy *= dv_max / dv_h
         dvz = max(-dv_max, min(dv_max, dvz))
-        if p.accel_lag_s > 0.0:
+        if acc_ne_m_s2 is not None:
+            dvx, dvy = acc_ne_m_s2[0] * dt_s, acc_ne_m_s2[1] * dt_s
+        elif p.accel_lag_s > 0.0:
             # Second order: the horizontal acceleration follows the one asked for through a lag.
             ka = _lag_gain(dt_s, p.accel_lag_s)
             ax, ay = s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]

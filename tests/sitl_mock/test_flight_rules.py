@@ -17,12 +17,12 @@ NAN = math.nan
 
 
 def make(autopilot: str, vehicle: str = "copter", airborne: bool = True, loss_s: float = 0.5, timeout_s: float = 3.0,
-         yaw_deg: float = 0.0, **vehicle_kw) -> FlightLogic:
+         yaw_deg: float = 0.0, posctl=None, **vehicle_kw) -> FlightLogic:
     pers = Personality(autopilot, vehicle)
     vp = VehicleParams(kind=vehicle, **vehicle_kw)
     model = VehicleModel(vp, (0.0, 0.0, -10.0 if airborne else 0.0), math.radians(yaw_deg), airborne)
     params = pers.default_params(1, loss_s, timeout_s, vp.a_max_m_s2, 90.0, vp.v_max_m_s, (15.0, 10.0, 25.0), 45.0)
-    return FlightLogic(pers, model, params, airborne, (0.0, 0.0, 0.0))
+    return FlightLogic(pers, model, params, airborne, (0.0, 0.0, 0.0), posctl)
 
 
 def advance(f: FlightLogic, seconds: float, setpoint=None, every_s: float = 0.05) -> None:

@@ -8,6 +8,7 @@ import pytest
 
 from sitl_mock.cli import build_parser, config_from_args, main
 from sitl_mock.personality import IDENTIFIED_COPTER_MODELS, Personality
+from sitl_mock.posctl import PosControlParams
 
 
 def config(*argv):
@@ -22,6 +23,16 @@ def test_a_copter_flies_the_model_identified_from_its_autopilot_by_default(autop
         model["lag_s"], model["a_max_m_s2"], model["delay_s"], model["speed_sag_s"])
     assert vp.yaw_rate_max_rad_s == pytest.approx(math.radians(model["yaw_rate_max_deg_s"]))
     assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (model["vel_bias_m_s"], model["vel_bias_tc_s"])
+
+
+def test_the_ardupilot_copter_emulates_arducopters_position_controller_unless_a_model_is_given(tmp_path):
+    assert config("--autopilot", "ardupilot").posctl == PosControlParams()
+    assert config("--autopilot", "px4").posctl is None
+    assert config("--autopilot", "ardupilot", "--vehicle", "rover").posctl is None
+    f = tmp_path / "vehicle.yaml"
+    f.write_text("vehicle:\n  a_max_m_s2: 2.5\n  lag_s: 0.4\n")
+    for option in (("--no-posctl",), ("--vehicle-model", str(f)), ("--tau-vel-s", "0.3"), ("--a-max-m-s2", "5")):
+        assert config("--autopilot", "ardupilot", *option).posctl is None, option
 
 
 def test_a_rover_keeps_the_generic_model():
