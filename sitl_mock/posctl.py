@@ -31,7 +31,8 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-GRAVITY_M_S2 = 9.80665
+from sitl_mock.vehicle import GRAVITY_M_S2
+
 CORNER_ACCELERATION_RATIO = 1.0 / math.sqrt(2.0)  # AP_Math/control.h
 
 
