@@ -167,12 +167,14 @@ class NEPositionController:
 
     def reset(self, pos_ne_m: tuple[float, float], vel_ne_m_s: tuple[float, float],
               acc_ne_m_s2: tuple[float, float]) -> None:
-        """Start the trajectory at the vehicle's state (``init_NE_controller``)."""
+        """Start the trajectory at the vehicle's state, as ``init_NE_controller`` does: desired
+        position and velocity the vehicle's, desired acceleration zero, and the velocity loop's
+        integrator holding the acceleration the vehicle flies, so the command carries on from it."""
         self.desired_pos_ne_m = (float(pos_ne_m[0]), float(pos_ne_m[1]))
         self.desired_vel_ne_m_s = (float(vel_ne_m_s[0]), float(vel_ne_m_s[1]))
-        self.desired_acc_ne_m_s2 = (float(acc_ne_m_s2[0]), float(acc_ne_m_s2[1]))
-        self.acc_ne_m_s2 = self.desired_acc_ne_m_s2  # what the airframe flies
-        self._integrator = (0.0, 0.0)
+        self.desired_acc_ne_m_s2 = (0.0, 0.0)
+        self.acc_ne_m_s2 = (float(acc_ne_m_s2[0]), float(acc_ne_m_s2[1]))  # what the airframe flies
+        self._integrator = _limit_length(self.acc_ne_m_s2[0], self.acc_ne_m_s2[1], self.params.vel_imax_m_s2)
         self._error = None  # the filtered velocity error (None: take the first one as it is)
         self._derivative = (0.0, 0.0)
         self._queue.clear()

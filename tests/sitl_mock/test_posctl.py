@@ -94,6 +94,16 @@ def test_the_vehicle_catches_the_trajectory_and_holds_its_position():
     assert pos[-1] == pytest.approx(desired_pos[-1], abs=0.01)
 
 
+def test_velocity_control_starts_from_the_acceleration_the_vehicle_flies():
+    # init_NE_controller: the trajectory's acceleration starts at zero and the velocity loop's
+    # integrator takes the acceleration being flown, so the first command carries it on.
+    ctl = NEPositionController(PosControlParams(input_delay_s=0.0))
+    ctl.reset((0.0, 0.0), (3.0, 0.0), (1.0, 0.5))
+    assert ctl.desired_acc_ne_m_s2 == (0.0, 0.0)
+    # after one step the vehicle lags the trajectory by 3 m/s x 2.5 ms: 2 (1/s) x 1 (1/s) x 7.5 mm
+    assert ctl.update(0.0025, (3.0, 0.0), (0.0, 0.0), (3.0, 0.0)) == pytest.approx((1.0 + 0.015, 0.5), abs=2e-3)
+
+
 def test_the_input_delay_shifts_the_response():
     dt = 0.0025
     early = _trajectory(PosControlParams(input_delay_s=0.0), (5.0, 0.0), 3.0, dt)
