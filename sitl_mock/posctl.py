@@ -107,22 +107,33 @@ def _limit_length(x: float, y: float, limit: float) -> tuple[float, float]:
     return x, y
 
 
+def _split(an: float, ae: float, dn: float, de: float) -> tuple[float, float, float, float, float] | None:
+    """An acceleration's part along the direction ``(dn, de)`` and its cross part (None: no direction)."""
+    d = math.hypot(dn, de)
+    if d <= 0.0:
+        return None
+    un, ue = dn / d, de / d
+    along = an * un + ae * ue
+    return un, ue, along, an - along * un, ae - along * ue
+
+
+def _recombined(un: float, ue: float, along: float, cn: float, ce: float, limit: float,
+                cross_limit: float) -> tuple[float, float]:
+    """The cross part limited to ``cross_limit``, the along part to what remains of ``limit``."""
+    cn, ce = _limit_length(cn, ce, cross_limit)
+    along_max = math.sqrt(max(0.0, limit * limit - (cn * cn + ce * ce)))
+    along = max(-along_max, min(along_max, along))
+    return cn + along * un, ce + along * ue
+
+
 def corner_limited(an: float, ae: float, dn: float, de: float, limit: float) -> tuple[float, float]:
     """An acceleration limited to ``limit`` the way ``shape_vel_accel_xy`` does about the direction
     ``(dn, de)``: when its part along the direction dominates, its cross part is held to
     1/sqrt(2) of the limit and the along part gets what remains; otherwise its length is limited."""
-    d = math.hypot(dn, de)
-    if d <= 0.0:
+    parts = _split(an, ae, dn, de)
+    if parts is None or parts[2] ** 2 <= parts[3] ** 2 + parts[4] ** 2:
         return _limit_length(an, ae, limit)
-    un, ue = dn / d, de / d
-    along = an * un + ae * ue
-    cn, ce = an - along * un, ae - along * ue
-    if along * along <= cn * cn + ce * ce:
-        return _limit_length(an, ae, limit)
-    cn, ce = _limit_length(cn, ce, CORNER_ACCELERATION_RATIO * limit)
-    along_max = math.sqrt(max(0.0, limit * limit - (cn * cn + ce * ce)))
-    along = max(-along_max, min(along_max, along))
-    return cn + along * un, ce + along * ue
+    return _recombined(*parts, limit, CORNER_ACCELERATION_RATIO * limit)
 
 
 def cross_first_limited(an: float, ae: float, dn: float, de: float, limit: float) -> tuple[float, float]:
@@ -130,18 +141,10 @@ def cross_first_limited(an: float, ae: float, dn: float, de: float, limit: float
     travel ``(dn, de)``: the cross part keeps up to the whole limit, the along part what remains."""
     if an * an + ae * ae <= limit * limit:
         return an, ae
-    d = math.hypot(dn, de)
-    if d <= 0.0:
+    parts = _split(an, ae, dn, de)
+    if parts is None:
         return _limit_length(an, ae, limit)
-    un, ue = dn / d, de / d
-    along = an * un + ae * ue
-    cn, ce = an - along * un, ae - along * ue
-    cross = math.hypot(cn, ce)
-    if cross > limit:
-        return cn * limit / cross, ce * limit / cross
-    along_max = math.sqrt(max(0.0, limit * limit - cross * cross))
-    along = max(-along_max, min(along_max, along))
-    return cn + along * un, ce + along * ue
+    return _recombined(*parts, limit, limit)
 
 
 class NEPositionController:
