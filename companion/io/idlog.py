@@ -11,7 +11,9 @@ From any tlog holding both directions of the link (the companion's, MAVProxy's, 
 The autopilot's ``time_boot_ms`` is mapped onto the log's clock by a straight line fitted to
 (boot time, log time) and shifted to the lower envelope of the arrival times (the 2nd
 percentile): the samples keep the autopilot's own spacing, without the link's jitter, and a
-simulator running slightly slower than the wall clock (PX4 SIH: 1.3 %) is followed.
+simulator running slightly slower than the wall clock (PX4 SIH: 1.3 %) is followed. The
+measurements' own time stamps go along too: the velocity estimate's bias integrates the velocity
+over the autopilot's seconds, in which the vehicle moved.
 """
 
 from __future__ import annotations
@@ -89,6 +91,7 @@ def read_identification_samples(path: str | Path) -> Samples:
     try:
         return resample(t_cmd_s=sp[:, 0], vel_cmd_ne_m_s=sp[:, 1:3], yaw_rate_cmd_rad_s=sp[:, 3],
                         t_meas_s=_log_time(m[:, 0], m[:, 1]), vel_meas_ne_m_s=m[:, 2:4], pos_meas_ne_m=m[:, 4:6],
+                        t_meas_autopilot_s=m[:, 1],
                         t_yaw_s=t_yaw, yaw_rate_meas_rad_s=yaw[:, 2] if len(yaw) else np.zeros(0))
     except ValueError as err:
         raise LogError(f"{path}: {err}") from None

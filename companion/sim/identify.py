@@ -114,17 +114,22 @@ class Samples:
     t_yaw_s: np.ndarray  # measured yaw-rate times
     yaw_rate_rad_s: np.ndarray  # measured yaw rate
     pos_ne_m: np.ndarray | None = None  # (N, 2) measured position (None: the log has none)
+    # (N,) the autopilot's own clock at each grid time (None: the grid's): the velocity is
+    # integrated over it, as the vehicle moved in the autopilot's seconds
+    t_autopilot_s: np.ndarray | None = None
 
 
 def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_s: ArrayLike,
              t_meas_s: ArrayLike, vel_meas_ne_m_s: ArrayLike, t_yaw_s: ArrayLike = (),
              yaw_rate_meas_rad_s: ArrayLike = (), pos_meas_ne_m: ArrayLike | None = None,
-             dt_s: float = GRID_DT_S) -> Samples:
+             t_meas_autopilot_s: ArrayLike | None = None, dt_s: float = GRID_DT_S) -> Samples:
     """Put the log's commands and measurements on one grid of step ``dt_s``.
 
     Times are seconds on one clock (the log's). Measured velocities (and positions, when given)
     are interpolated linearly onto the grid; a grid point is valid when the newest command is at
     most :data:`MAX_COMMAND_GAP_S` old and the measurement brackets it closely.
+    ``t_meas_autopilot_s``, the measurements' own time stamps (the autopilot's clock), is carried
+    onto the grid the same way (:attr:`Samples.t_autopilot_s`).
     """
     t_cmd = np.asarray(t_cmd_s, float)
     vc = np.asarray(vel_cmd_ne_m_s, float).reshape(-1, 2)
@@ -157,12 +162,13 @@ def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_
     finite = np.isfinite(v).all(axis=1)
     valid &= finite & np.roll(finite, -1)
     pos = None if pm is None else np.column_stack([np.interp(t, tm, pm[:, 0]), np.interp(t, tm, pm[:, 1])])
+    t_ap = None if t_meas_autopilot_s is None else np.interp(t, tm, np.asarray(t_meas_autopilot_s, float)[order])
     return Samples(t, v, valid, t_cmd, vc, yc, np.asarray(t_yaw_s, float), np.asarray(yaw_rate_meas_rad_s, float),
-                   pos)
+                   pos, t_ap)
 
 
 def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
-                  ) -> tuple[float, float, float, float, dict[float, float]]:
+                  t_autopilot_s: np.ndarray | None = None) -> tuple[float, float, float, float, dict[float, float]]:
     """The velocity estimate's bias: ``(sigma_m_s, tc_s, se_sigma_m_s, se_tc_s, structure)``.
 
     On a uniform grid, ``e(t) = p(t) - integral of v`` (reported position minus the integral of
@@ -180,13 +186,19 @@ def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray,
     of the same fit on :data:`BIAS_BOOTSTRAP_RUNS` drifts drawn from the fitted process over the
     same samples (seeded: the same log gives the same errors). ``structure``
     maps each lag ``T`` (s) to the measured ``D`` (m). Pure: arrays in, numbers out.
+
+    The velocity is integrated over ``t_autopilot_s`` when given (the autopilot's clock at each
+    grid time): a simulator's clock can run slower than the log's, and integrating over the log's
+    seconds would then add ``v`` times the difference in rates to the drift (0.07 m/s at 5 m/s
+    for PX4 SIH's steady 1.3 %; far more where its clock slips unevenly).
     """
     t = np.asarray(t_s, float)
     dt = float(t[1] - t[0])
     ok = np.asarray(valid, bool)
     v = np.asarray(vel_ne_m_s, float)
     step = np.zeros_like(v)
-    step[1:] = 0.5 * (v[1:] + v[:-1]) * dt
+    step_s = dt if t_autopilot_s is None else np.diff(np.asarray(t_autopilot_s, float))[:, None]
+    step[1:] = 0.5 * (v[1:] + v[:-1]) * step_s
     e = np.asarray(pos_ne_m, float) - np.cumsum(step, axis=0)
     full = _fit_bias(e, ok, dt)
     if full is None:
@@ -531,7 +543,7 @@ def _identify_bias(s: Samples, quality: dict[str, float | str], unidentified: di
     if s.pos_ne_m is None:
         unidentified["vel_bias_m_s"] = unidentified["vel_bias_tc_s"] = "no positions in the log"
         return 0.0, NO_BIAS_TC_S, math.inf, math.inf
-    bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid)
+    bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s)
     quality.update({f"position_drift_{lag:g}s_m": d for lag, d in drift.items()})
     unidentified.update(_bias_unidentified(bias, tc, se, tc_se, bool(drift)))
     if bias < BIAS_NEGLIGIBLE_M_S:

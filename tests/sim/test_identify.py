@@ -112,6 +112,37 @@ def test_velocity_bias_of_a_synthetic_gauss_markov_drift_and_of_none():
     assert s_none < 1e-9
 
 
+def test_the_velocity_is_integrated_over_the_autopilots_clock_not_the_logs():
+    # A simulator whose clock runs 5-10 % slower than the log's, unevenly (as PX4 SIH on a loaded
+    # machine), and a vehicle circling at 5 m/s with a known bias (Gauss-Markov, 0.1 m/s over
+    # 3 s, drawn here on the autopilot's clock): its position is the integral of its reported
+    # velocity plus the bias over its own seconds. Integrated over the log's seconds instead, the
+    # velocity would run ahead of the position by 5-10 % of 5 m/s, turning with the course: a
+    # bias made up.
+    rng = np.random.default_rng(3)
+    dt = 0.02
+    t_ap = np.arange(0.0, 600.0, dt)  # the autopilot's clock
+    stretch = 1.0 + 0.05 * (1.0 + np.sin(2 * np.pi * t_ap / 40.0))  # log seconds per autopilot second
+    t_log = np.concatenate([[0.0], np.cumsum(stretch[1:] * dt)]) + rng.uniform(0.0, 0.004, t_ap.size)
+    sigma, tau = 0.1, 3.0
+    phi = math.exp(-dt / tau)
+    kicks = rng.standard_normal((t_ap.size, 2)) * sigma * math.sqrt(1.0 - phi * phi)
+    bias = np.zeros((t_ap.size, 2))
+    for i in range(1, t_ap.size):
+        bias[i] = phi * bias[i - 1] + kicks[i]
+    course = 0.2 * t_ap
+    vel = 5.0 * np.column_stack([np.cos(course), np.sin(course)])  # reported
+    pos = 25.0 * np.column_stack([np.sin(course), 1.0 - np.cos(course)]) + np.cumsum(bias, axis=0) * dt
+
+    def fitted_sigma(autopilot_clock: bool) -> float:
+        s = resample(t_cmd_s=t_log, vel_cmd_ne_m_s=vel, yaw_rate_cmd_rad_s=np.full(t_ap.size, 0.2), t_meas_s=t_log,
+                     vel_meas_ne_m_s=vel, pos_meas_ne_m=pos, t_meas_autopilot_s=t_ap if autopilot_clock else None)
+        return velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s)[0]
+
+    assert fitted_sigma(True) == pytest.approx(sigma, rel=0.15)
+    assert fitted_sigma(False) > 2.0 * sigma  # the log's seconds make one up
+
+
 # ------------------------------------------------------------------ the mock's vehicle, known models
 
 
