@@ -267,39 +267,13 @@ class VehicleModel:
         vel_cmd_ned_m_s, yaw_rate_cmd_rad_s = self._delayed(vel_cmd_ned_m_s, yaw_rate_cmd_rad_s)
         k = _lag_gain(dt_s, p.tau_vel_s)
         v = s.vel_ned_m_s
-        cx, cy = vel_cmd_ned_m_s[0], vel_cmd_ned_m_s[1]
-        if p.speed_sag_s > 0.0:
-            # Speed sag: the horizontal command shrinks by speed_sag_s x |lateral acceleration|.
-            c_h = math.hypot(cx, cy)
-            speed = math.hypot(v[0], v[1])
-            if c_h > 1e-9 and speed > 1e-9:
-                a_lat = abs(v[0] * s.acc_ned_m_s2[1] - v[1] * s.acc_ned_m_s2[0]) / speed
-                scale = max(0.0, 1.0 - p.speed_sag_s * a_lat / c_h)
-                cx, cy = cx * scale, cy * scale
-        ex, ey = cx - v[0], cy - v[1]
-        if p.tail_share > 0.0:
-            # Slow tail: a low-passed share of the error is taken back from what the loop asks for.
-            fx, fy = self._tail_ne_m_s
-            kf = _lag_gain(dt_s, p.tail_tc_s)
-            self._tail_ne_m_s = (fx + (ex - fx) * kf, fy + (ey - fy) * kf)
-            ex, ey = ex - p.tail_share * fx, ey - p.tail_share * fy
-        dvx = ex * k + acc_ff_ned_m_s2[0] * dt_s
-        dvy = ey * k + acc_ff_ned_m_s2[1] * dt_s
-        dvz = 0.0 if p.kind == "rover" else (vel_cmd_ned_m_s[2] - v[2]) * k + acc_ff_ned_m_s2[2] * dt_s
         dv_max = p.a_max_m_s2 * dt_s
-        dv_h = math.hypot(dvx, dvy)
-        if dv_h > dv_max:
-            dvx *= dv_max / dv_h
-            dvy *= dv_max / dv_h
-        dvz = max(-dv_max, min(dv_max, dvz))
-        if acc_ne_m_s2 is not None:
+        if acc_ne_m_s2 is not None:  # the autopilot's own position controller chose it
             dvx, dvy = acc_ne_m_s2[0] * dt_s, acc_ne_m_s2[1] * dt_s
-        elif p.accel_lag_s > 0.0:
-            # Second order: the horizontal acceleration follows the one asked for through a lag.
-            ka = _lag_gain(dt_s, p.accel_lag_s)
-            ax, ay = s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]
-            dvx = (ax + (dvx / dt_s - ax) * ka) * dt_s
-            dvy = (ay + (dvy / dt_s - ay) * ka) * dt_s
+        else:
+            dvx, dvy = self._horizontal_response(dt_s, vel_cmd_ned_m_s, acc_ff_ned_m_s2, k, dv_max)
+        dvz = 0.0 if p.kind == "rover" else (vel_cmd_ned_m_s[2] - v[2]) * k + acc_ff_ned_m_s2[2] * dt_s
+        dvz = max(-dv_max, min(dv_max, dvz))
         s.acc_ned_m_s2 = [dvx / dt_s, dvy / dt_s, dvz / dt_s]
         v_new = [v[0] + dvx, v[1] + dvy, 0.0 if p.kind == "rover" else v[2] + dvz]
         self._move(v, v_new, dt_s)
@@ -331,6 +305,43 @@ class VehicleModel:
         s.airspeed_m_s = math.hypot(v_new[0], v_new[1])
         s.t_s += dt_s
         self._draw_noise()
+
+    def _horizontal_response(self, dt_s: float, vel_cmd_ned_m_s, acc_ff_ned_m_s2, k: float,
+                             dv_max: float) -> tuple[float, float]:
+        """This step's horizontal velocity change: speed sag, slow tail, the lag ``k``, the limit
+        ``dv_max`` and the second lag (the model's own velocity loop; module docstring)."""
+        p = self.params
+        s = self.state
+        v = s.vel_ned_m_s
+        cx, cy = vel_cmd_ned_m_s[0], vel_cmd_ned_m_s[1]
+        if p.speed_sag_s > 0.0:
+            # Speed sag: the horizontal command shrinks by speed_sag_s x |lateral acceleration|.
+            c_h = math.hypot(cx, cy)
+            speed = math.hypot(v[0], v[1])
+            if c_h > 1e-9 and speed > 1e-9:
+                a_lat = abs(v[0] * s.acc_ned_m_s2[1] - v[1] * s.acc_ned_m_s2[0]) / speed
+                scale = max(0.0, 1.0 - p.speed_sag_s * a_lat / c_h)
+                cx, cy = cx * scale, cy * scale
+        ex, ey = cx - v[0], cy - v[1]
+        if p.tail_share > 0.0:
+            # Slow tail: a low-passed share of the error is taken back from what the loop asks for.
+            fx, fy = self._tail_ne_m_s
+            kf = _lag_gain(dt_s, p.tail_tc_s)
+            self._tail_ne_m_s = (fx + (ex - fx) * kf, fy + (ey - fy) * kf)
+            ex, ey = ex - p.tail_share * fx, ey - p.tail_share * fy
+        dvx = ex * k + acc_ff_ned_m_s2[0] * dt_s
+        dvy = ey * k + acc_ff_ned_m_s2[1] * dt_s
+        dv_h = math.hypot(dvx, dvy)
+        if dv_h > dv_max:
+            dvx *= dv_max / dv_h
+            dvy *= dv_max / dv_h
+        if p.accel_lag_s > 0.0:
+            # Second order: the horizontal acceleration follows the one asked for through a lag.
+            ka = _lag_gain(dt_s, p.accel_lag_s)
+            ax, ay = s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]
+            dvx = (ax + (dvx / dt_s - ax) * ka) * dt_s
+            dvy = (ay + (dvy / dt_s - ay) * ka) * dt_s
+        return dvx, dvy
 
     # ------------------------------------------------------------------ plane
     def step_plane(self, dt_s: float, roll_cmd_rad: float, airspeed_cmd_m_s: float, climb_cmd_m_s: float,
