@@ -33,7 +33,7 @@ are ignored; the speed is set separately by a speed command (see ``companion.io.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from companion.geometry import frames
 
@@ -207,6 +207,36 @@ def hold_setpoint(alt_m: float, hold: AltitudeHold | None) -> VelocitySetpoint:
     """
     vz = hold.vz_ned_m_s(alt_m) if hold is not None else 0.0
     return VelocitySetpoint(0.0, 0.0, vz, 0.0)
+
+
+POSITION_HOLD_GAIN_1_S = 1.0  # horizontal position hold: velocity per metre off the anchor (PX4's MPC_XY_P is 0.95)
+POSITION_HOLD_MAX_M_S = 1.0  # and at most this fast back to it
+
+
+def position_hold_setpoint(north_m: float, east_m: float, anchor_north_m: float, anchor_east_m: float,
+                           alt_m: float, hold: AltitudeHold | None,
+                           gain_1_s: float = POSITION_HOLD_GAIN_1_S,
+                           max_speed_m_s: float = POSITION_HOLD_MAX_M_S) -> VelocitySetpoint:
+    """A hold that keeps the horizontal position: velocity ``-gain (p - anchor)`` (NED), at most
+    ``max_speed_m_s``, zero yaw rate, ``vz`` as :func:`hold_setpoint`.
+
+    An autopilot's velocity loop holds its velocity *estimate* at zero, and the vehicle drifts by
+    whatever that estimate misses; this closes the loop on the reported position instead. A
+    non-finite position gives the plain hold (zero velocity), never a NaN.
+
+    >>> sp = position_hold_setpoint(2.0, -0.5, 0.0, 0.0, 10.0, None)
+    >>> round(sp.vx_ned_m_s, 6), round(sp.vy_ned_m_s, 6), sp.vz_ned_m_s
+    (-0.970143, 0.242536, 0.0)
+    """
+    plain = hold_setpoint(alt_m, hold)
+    dn, de = north_m - anchor_north_m, east_m - anchor_east_m
+    if not (math.isfinite(dn) and math.isfinite(de)):
+        return plain
+    vn, ve = -gain_1_s * dn, -gain_1_s * de
+    speed = math.hypot(vn, ve)
+    if speed > max_speed_m_s:
+        vn, ve = vn * max_speed_m_s / speed, ve * max_speed_m_s / speed
+    return replace(plain, vx_ned_m_s=vn, vy_ned_m_s=ve)
 
 
 def bank_angle_rad(a_cmd_m_s2: float, max_bank_deg: float) -> float:

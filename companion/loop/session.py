@@ -88,6 +88,10 @@ class LinkSession:
         # PX4 leaves OFFBOARD when setpoints stop: while arming/climbing, idle() streams holds.
         self.keepalive_config: TickConfig | None = None
         self._last_keepalive_s = -math.inf
+        # A copter's pre-stream and climb hold the horizontal position of their first fresh
+        # sample (NED north, east), not zero velocity: the velocity loop holds its estimate,
+        # and PX4 SIH's drifts by 0.1-0.25 m/s (docs/vehicle_model.md).
+        self.hold_anchor_ne_m: tuple[float, float] | None = None
 
     def event(self, text: str, severity: int = MAV_SEVERITY_INFO, *, record: bool = True) -> None:
         """An operator event: the log, the event list, the status line and (``record``) the tlog
@@ -152,12 +156,20 @@ class LinkSession:
         return [t for _, t in self.link.state.statustext[-new:]] if new > 0 else []
 
     def hold_now(self, config: TickConfig) -> None:
-        """Send one hold setpoint (zero velocity, altitude held) for the pre-stream."""
+        """Send one hold setpoint for the pre-stream and the climb: altitude held and, on a copter
+        with a fresh sample, the horizontal position of the first fresh sample (else zero
+        velocity)."""
         p = self.link.state.position
         fresh = p is not None and time.monotonic() - p.received_s <= self.opt.stale_s
         alt = -p.z_ned_m if p is not None else math.nan
         course = course_from_sample(p, self.link.state.yaw_ned_rad, 0.0, config.min_course_speed_m_s)
-        self.send(hold_for(config, alt, fresh, course))
+        here = None
+        if fresh and self.link.info.vehicle == "copter" and config.output == "velocity":
+            here = (p.x_ned_m, p.y_ned_m)
+            if self.hold_anchor_ne_m is None and math.isfinite(here[0]) and math.isfinite(here[1]):
+                self.hold_anchor_ne_m = here
+                self.event(f"holding the position N {here[0]:.2f} m, E {here[1]:.2f} m until the path starts")
+        self.send(hold_for(config, alt, fresh, course, position_ne_m=here, anchor_ne_m=self.hold_anchor_ne_m))
 
     def send(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
         self.link.send_setpoint(sp)

@@ -43,6 +43,7 @@ from companion.io.setpoints import (
     VelocitySetpoint,
     attitude_setpoint,
     hold_setpoint,
+    position_hold_setpoint,
     profile_targets,
     velocity_setpoint,
 )
@@ -275,16 +276,24 @@ def _attitude(config: TickConfig, a_cmd: float, course: float, alt_m: float, s_m
 
 
 def hold_for(config: TickConfig, alt_m: float, have_sample: bool,
-             course_enu_rad: float, s_m: float = 0.0) -> VelocitySetpoint | AttitudeSetpoint:
+             course_enu_rad: float, s_m: float = 0.0,
+             position_ne_m: tuple[float, float] | None = None,
+             anchor_ne_m: tuple[float, float] | None = None) -> VelocitySetpoint | AttitudeSetpoint:
     """The hold of this output: zero velocity and yaw rate (copter, rover; altitude held when a
     sample exists, at the profile's height at ``s_m`` for a mission with an altitude profile), or
     wings level on the last course (plane: it cannot stop; the autopilot's own setpoint-loss
-    failsafe takes over if the hold lasts)."""
+    failsafe takes over if the hold lasts). With a fresh sample's ``position_ne_m`` and an
+    ``anchor_ne_m`` (NED north, east), the copter's hold keeps that horizontal position
+    (:func:`position_hold_setpoint`) instead of zero velocity."""
     if config.output == "attitude":
         return attitude_setpoint(0.0, course_enu_rad, config.max_bank_deg, config.thrust)
-    if have_sample and config.profile is not None:
-        return hold_setpoint(alt_m, profile_targets(config.profile, s_m, feed_forward=False)[1])
-    return hold_setpoint(alt_m, config.altitude_hold if have_sample else None)
+    hold = None
+    if have_sample:
+        hold = (profile_targets(config.profile, s_m, feed_forward=False)[1] if config.profile is not None
+                else config.altitude_hold)
+    if have_sample and position_ne_m is not None and anchor_ne_m is not None:
+        return position_hold_setpoint(*position_ne_m, *anchor_ne_m, alt_m, hold)
+    return hold_setpoint(alt_m, hold)
 
 
 def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sample_age_s: float,

@@ -58,6 +58,24 @@ def test_hold_is_zero_velocity_zero_yaw_rate():
     assert h.is_hold and h.vz_ned_m_s == 0.0
 
 
+def test_position_hold_points_back_at_the_anchor_proportionally_then_limited():
+    # 0.3 m north and 0.4 m east of the anchor: 0.5 m off, gain 1/s -> 0.5 m/s back, south-west
+    h = sp.position_hold_setpoint(10.3, -4.6, 10.0, -5.0, 10.0, HOLD)
+    assert (h.vx_ned_m_s, h.vy_ned_m_s) == (pytest.approx(-0.3), pytest.approx(-0.4))
+    assert h.yaw_rate_ned_rad_s == 0.0 and h.vz_ned_m_s == sp.hold_setpoint(10.0, HOLD).vz_ned_m_s
+    # 30 m off (3-4-5): limited to 1 m/s, same direction
+    h = sp.position_hold_setpoint(-18.0, 24.0, 0.0, 0.0, 10.0, HOLD, gain_1_s=1.0, max_speed_m_s=1.0)
+    assert (h.vx_ned_m_s, h.vy_ned_m_s) == (pytest.approx(0.6), pytest.approx(-0.8))
+    # on the anchor: the plain hold
+    assert sp.position_hold_setpoint(1.0, 2.0, 1.0, 2.0, 10.0, HOLD).is_hold
+
+
+def test_position_hold_on_a_non_finite_position_is_the_plain_hold_never_nan():
+    for bad in (math.nan, math.inf):
+        h = sp.position_hold_setpoint(bad, 0.0, 0.0, 0.0, 10.0, HOLD)
+        assert h.is_hold and math.isfinite(h.vz_ned_m_s)
+
+
 def test_velocity_vector_reaches_the_commanded_turn_within_one_tick():
     """A vehicle that flies each tick's velocity exactly follows the ideal unicycle with no lag.
 

@@ -6,7 +6,7 @@ import pytest
 
 from companion.guidance.types import GuidanceOutput
 from companion.io.state import PositionSample
-from companion.loop.tick import DEBUG_FIELDS, TickConfig, coast_setpoint, compute_tick
+from companion.loop.tick import DEBUG_FIELDS, TickConfig, coast_setpoint, compute_tick, hold_for
 
 IDX = {name: i for i, name in enumerate(DEBUG_FIELDS)}
 CFG = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0, stale_s=0.3)
@@ -125,3 +125,17 @@ def test_a_long_coast_flies_straight_instead_of_circling():
     last = compute_tick(ConstantTurn(a=3.0), 0, 0.0, sample(), 0.0, CFG)
     sp = coast_setpoint(last, sample(), 0.02, CFG, 0.5, turning=False)
     assert sp.course_cmd_enu_rad == pytest.approx(0.5) and sp.yaw_rate_ned_rad_s == 0.0
+
+
+def test_the_hold_keeps_an_anchor_only_with_a_fresh_sample_and_velocity_output():
+    # 2 m south of the anchor at 8 m (altitude 10 m): back north at the 1 m/s limit, climbing
+    h = hold_for(CFG, 8.0, True, 0.0, position_ne_m=(-2.0, 0.0), anchor_ne_m=(0.0, 0.0))
+    assert (h.vx_ned_m_s, h.vy_ned_m_s, h.yaw_rate_ned_rad_s) == (pytest.approx(1.0), pytest.approx(0.0), 0.0)
+    assert h.vz_ned_m_s < 0.0  # NED: up
+    # no fresh sample: zero velocity, whatever the anchor
+    assert hold_for(CFG, 8.0, False, 0.0, position_ne_m=(-2.0, 0.0), anchor_ne_m=(0.0, 0.0)).is_hold
+    # no anchor: zero velocity
+    assert hold_for(CFG, 8.0, True, 0.0, position_ne_m=(-2.0, 0.0)).is_hold
+    # a plane's hold is wings level, never a position
+    plane = TickConfig(speed_m_s=15.0, rate_hz=50.0, altitude_m=50.0, output="attitude")
+    assert hold_for(plane, 50.0, True, 0.0, position_ne_m=(-2.0, 0.0), anchor_ne_m=(0.0, 0.0)).roll_ned_rad == 0.0
