@@ -65,9 +65,11 @@ def run(args) -> int:
         raise LogError(f"{path}: {err}") from None
     q = result.quality
     if args.json:
-        print(json.dumps({"vehicle": result.model.as_dict(), "std_errors": result.std_errors,
-                          "quality": q, "excitation": result.excitation,
-                          "unidentified": result.unidentified}, indent=2))
+        from companion.bench.campaign import finite_json  # an infinite standard error is null: JSON has no inf
+
+        print(json.dumps(finite_json({"vehicle": result.model.as_dict(), "std_errors": result.std_errors,
+                                      "quality": q, "excitation": result.excitation,
+                                      "unidentified": result.unidentified}), indent=2, allow_nan=False))
     else:
         values = result.model.as_dict()
         print(f"{path.name}: {q['duration_s']:.0f} s of flight under velocity setpoints, "
@@ -80,6 +82,9 @@ def run(args) -> int:
         print(f"  lateral acceleration: one-step prediction explains {q['vaf_one_step']:.1%} of its variance "
               f"(residual RMS {q['residual_rms_one_step_m_s2']:.3f} m/s^2); free run {q['vaf_free_run']:.1%} "
               f"(RMS {q['residual_rms_free_run_m_s2']:.3f} m/s^2)")
+        if "vel_bias_across_m_s" in q:
+            print(f"  velocity bias across the track (the part that moves a track): {q['vel_bias_across_m_s']:.3f} "
+                  f"+- {q['vel_bias_across_se_m_s']:.3g} m/s over {q['vel_bias_across_tc_s']:.2f} s")
     if result.unidentified and not args.partial:
         name, why = next(iter(result.unidentified.items()))
         others = len(result.unidentified) - 1
