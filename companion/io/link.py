@@ -45,6 +45,7 @@ import hashlib
 import math
 import os
 import select
+import signal
 import socket
 import struct
 import time
@@ -506,6 +507,14 @@ def connect_autopilot(connect: str, *, heartbeat_timeout_s: float,
     return link
 
 
+# Ctrl-C (KeyboardInterrupt) and SIGTERM (the runner's _Terminate) raise in the main thread between
+# any two bytecodes. Held while a packet is sent and recorded, they wait until both are done and
+# cannot fall between the two: a setpoint the autopilot flew is always in the tlog. (The companion's
+# other threads block them for good, so that none of them takes the signal meanwhile.)
+INTERRUPT_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
+_CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX
+
+
 class _TlogTap:
     """The ``file`` given to pymavlink's MAVLink object: every packet sent is also recorded."""
 
@@ -513,11 +522,18 @@ class _TlogTap:
         self.link = link
 
     def write(self, buf) -> None:
-        if not self.link._transport.send(bytes(buf)):
-            return
-        if self.link.tlog is not None:
-            self.link.tlog.write(bytes(buf))
-        self.link.sent += 1
+        try:
+            if _CAN_HOLD_SIGNALS:
+                signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPT_SIGNALS)
+            if not self.link._transport.send(bytes(buf)):
+                return
+            if self.link.tlog is not None:
+                self.link.tlog.write(bytes(buf))
+            self.link.sent += 1
+        finally:
+            # An interrupt that came meanwhile is raised here, after the record.
+            if _CAN_HOLD_SIGNALS:
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, INTERRUPT_SIGNALS)
 
 
 # Over 300 lines on purpose: the one pymavlink adapter (as mavutil's connection is one object):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -14,6 +15,7 @@ from pathlib import Path
 
 from companion.errors import LinkError
 from companion.geometry import frames
+from companion.io.link import INTERRUPT_SIGNALS
 from companion.mission.model import Mission
 
 
@@ -65,6 +67,8 @@ class MockProcess:
 
     def _read(self) -> None:
         assert self.proc is not None and self.proc.stdout is not None
+        if hasattr(signal, "pthread_sigmask"):  # Ctrl-C and SIGTERM are the main thread's (link.py)
+            signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPT_SIGNALS)
         for line in self.proc.stdout:
             line = line.rstrip("\n")
             self.lines.append(line)

@@ -1,7 +1,9 @@
 """The link adapter against a tiny in-test pymavlink autopilot over loopback UDP."""
 
 import math
+import signal
 import socket
+import threading
 import time
 
 import pytest
@@ -358,3 +360,40 @@ def test_an_interrupt_inside_the_parser_is_not_swallowed_as_bad_data(port):
         assert link.rejected["bad_data"] == 0
     finally:
         link.close()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_the_moment_a_setpoint_leaves_does_not_keep_it_out_of_the_tlog(port, signum):
+    # Ctrl-C or SIGTERM raises in the main thread between two bytecodes. If that is after the
+    # datagram left and before it was recorded, the autopilot flies a setpoint the log never shows
+    # (a real CI failure: "1 setpoints the autopilot received are missing from the tlog"). The
+    # transport here sends and then signals its own thread at once, the worst moment there is.
+    from companion.io.link import MemoryRecorder
+
+    link = MavLink(f"udpin:127.0.0.1:{port}")
+    ap = FakeAutopilot(("127.0.0.1", port))
+    paired(link, ap)
+    link.tlog, sent_before = MemoryRecorder(), link.sent
+    sent = []
+
+    def send_then_signal(buf: bytes) -> bool:
+        sent.append(bytes(buf))
+        signal.pthread_kill(threading.get_ident(), signum)
+        return True
+
+    def raise_interrupt(num, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signum, raise_interrupt)
+    try:
+        link._transport.send = send_then_signal
+        with pytest.raises(KeyboardInterrupt):
+            link.send_setpoint(VelocitySetpoint(1.0, 2.0, 0.0, 0.1))
+            for _ in range(1000):  # where the interrupt lands once the send is over
+                time.sleep(0)
+        assert len(sent) == 1
+        assert [p for _, p in link.tlog.records] == sent
+        assert link.sent == sent_before + 1
+    finally:
+        signal.signal(signum, old)
+        link.close(); ap.close()
