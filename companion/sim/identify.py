@@ -194,7 +194,7 @@ def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray,
     for PX4 SIH's steady 1.3 %; far more where its clock slips unevenly).
     """
     e, ok, dt = _drift_ne(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s)
-    return _fit_bias_with_errors(e, ok, dt)
+    return _fit_bias_with_errors([(e, ok)], dt)
 
 
 def across_track_velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
@@ -211,13 +211,46 @@ def across_track_velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s
     step's velocity and summed: for a bias of ``sigma`` across the track, its structure is that of
     :func:`velocity_bias` with that ``sigma``.
     """
+    across, ok, dt = _across_drift(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s, min_speed_m_s)
+    return _fit_bias_with_errors([(across, ok)], dt)
+
+
+def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
+                             ) -> tuple[float, float, float, float, dict[float, float]]:
+    """One bias process fitted to several flights at once: as :func:`across_track_velocity_bias`,
+    with every flight's pairs of samples pooled at each lag (no pair spans two flights).
+
+    This is the estimate of the process the flights share, the one a simulator should fly: each
+    flight of a minute holds few independent samples of a correlation time of seconds, and the
+    fits of single flights scatter along a ridge (a larger ``sigma`` with a shorter ``tau`` drifts
+    alike). The median of their ``sigma`` and the median of their ``tau``, taken apart, come from
+    different flights and can describe a process none of them flew: one flight of a slow bias
+    among six is dropped by both medians, though it drifts furthest. Pooled, it counts for its
+    share of the seconds. ValueError when the flights are not on one time step or none has
+    positions.
+    """
+    steps = {float(f.t_s[1] - f.t_s[0]) for f in flights if f.t_s.size > 1}
+    if len(steps) != 1:
+        raise ValueError(f"pooled bias: expected flights on one time step, got steps {sorted(steps)}")
+    segments = []
+    for f in flights:
+        if f.pos_ne_m is None:
+            raise ValueError("pooled bias: a flight has no positions")
+        across, ok, dt = _across_drift(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s)
+        segments.append((across, ok))
+    return _fit_bias_with_errors(segments, dt)
+
+
+def _across_drift(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
+                  t_autopilot_s: np.ndarray | None, min_speed_m_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(across, valid, dt)``: the drift's component across the track, summed step by step, as a
+    one-column array, valid where the vehicle flies at ``min_speed_m_s`` or more."""
     e, ok, dt = _drift_ne(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s)
     left, speed = _unit_lateral(np.asarray(vel_ne_m_s, float))
     ok = ok & (speed >= min_speed_m_s)
     de = np.zeros_like(e)
     de[1:] = np.diff(e, axis=0)
-    across = np.cumsum(np.where(ok, np.sum(de * left, axis=1), 0.0))[:, None]
-    return _fit_bias_with_errors(across, ok, dt)
+    return np.cumsum(np.where(ok, np.sum(de * left, axis=1), 0.0))[:, None], ok, dt
 
 
 def _drift_ne(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
@@ -233,10 +266,10 @@ def _drift_ne(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, val
     return np.asarray(pos_ne_m, float) - np.cumsum(step, axis=0), ok, dt
 
 
-def _fit_bias_with_errors(e: np.ndarray, ok: np.ndarray, dt: float) -> tuple[float, float, float, float,
-                                                                            dict[float, float]]:
+def _fit_bias_with_errors(segments: list[tuple[np.ndarray, np.ndarray]], dt: float,
+                          ) -> tuple[float, float, float, float, dict[float, float]]:
     """:func:`_fit_bias` with the parametric bootstrap's standard errors (see :func:`velocity_bias`)."""
-    full = _fit_bias(e, ok, dt)
+    full = _fit_bias(segments, dt)
     if full is None:
         return 0.0, NO_BIAS_TC_S, math.inf, math.inf, {}
     sigma, tau, structure = full
@@ -246,10 +279,12 @@ def _fit_bias_with_errors(e: np.ndarray, ok: np.ndarray, dt: float) -> tuple[flo
     phi = math.exp(-dt / tau)
     estimates = []
     for _ in range(BIAS_BOOTSTRAP_RUNS):
-        kicks = rng.standard_normal(e.shape) * sigma * math.sqrt(1.0 - phi * phi)
-        kicks[0] = rng.standard_normal(e.shape[1]) * sigma  # started in the stationary distribution
-        drift = np.cumsum(lfilter([1.0], [1.0, -phi], kicks, axis=0), axis=0) * dt
-        part = _fit_bias(drift, ok, dt)
+        drawn = []
+        for e, ok in segments:
+            kicks = rng.standard_normal(e.shape) * sigma * math.sqrt(1.0 - phi * phi)
+            kicks[0] = rng.standard_normal(e.shape[1]) * sigma  # started in the stationary distribution
+            drawn.append((np.cumsum(lfilter([1.0], [1.0, -phi], kicks, axis=0), axis=0) * dt, ok))
+        part = _fit_bias(drawn, dt)
         if part is not None:
             estimates.append(part[:2])
     if len(estimates) < BIAS_BOOTSTRAP_RUNS // 2:
@@ -258,23 +293,28 @@ def _fit_bias_with_errors(e: np.ndarray, ok: np.ndarray, dt: float) -> tuple[flo
     return sigma, tau, float(se[0]), float(se[1]), structure
 
 
-def _fit_bias(e: np.ndarray, ok: np.ndarray, dt: float) -> tuple[float, float, dict[float, float]] | None:
-    """``(sigma, tau, D by lag)`` fitted to the drift ``e`` over the samples ``ok`` (see
-    :func:`velocity_bias`); None when fewer than three lags can be measured."""
-    breaks = np.cumsum(~ok)  # a pair is usable when no invalid sample lies between its ends
-    span = float(ok.sum()) * dt
+def _fit_bias(segments: list[tuple[np.ndarray, np.ndarray]], dt: float) -> tuple[float, float, dict[float, float]] | None:
+    """``(sigma, tau, D by lag)`` fitted to the drifts ``e`` over their samples ``ok``, one
+    ``(e, ok)`` per flight (see :func:`velocity_bias`); None when fewer than three lags can be
+    measured. A flight adds its pairs at a lag up to a quarter of its own valid span."""
     lags, meas, pairs = [], [], []
     for lag in BIAS_LAGS_S:
         k = int(round(lag / dt))
-        if k < 1 or lag > span / 4.0:
+        squares, count, used = 0.0, 0, 0
+        for e, ok in segments:
+            if k < 1 or lag > float(ok.sum()) * dt / 4.0:
+                continue
+            breaks = np.cumsum(~ok)  # a pair is usable when no invalid sample lies between its ends
+            use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
+            d = e[k:][use] - e[:-k][use]
+            squares += float(np.sum(d * d))
+            count += d.size
+            used += int(use.sum())
+        if used < 10:
             continue
-        use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
-        if use.sum() < 10:
-            continue
-        d = e[k:][use] - e[:-k][use]
         lags.append(lag)
-        meas.append(float(np.sqrt(np.mean(d * d))))
-        pairs.append(float(use.sum()) * dt)  # seconds of usable pairs (per axis)
+        meas.append(math.sqrt(squares / count))
+        pairs.append(float(used) * dt)  # seconds of usable pairs (per axis)
     if len(lags) < 3 or min(meas) <= 0.0:
         return None
     lag_a, log_meas, pair_s = np.array(lags), np.log(meas), np.array(pairs)

@@ -13,7 +13,7 @@ import yaml
 
 from companion.cli.main import main
 from companion.guidance.types import VehicleModel
-from companion.sim.identify import (Samples, across_track_velocity_bias, identify, lateral_m_s2, resample, simulate,
+from companion.sim.identify import (Samples, across_track_velocity_bias, identify, pooled_across_track_bias, lateral_m_s2, resample, simulate,
                                    velocity_bias)
 from sitl_mock.personality import IDENTIFIED_COPTER_MODELS
 from sitl_mock.vehicle import VehicleModel as MockVehicle
@@ -140,6 +140,72 @@ def test_the_bias_across_the_track_is_told_from_the_bias_along_it():
     assert velocity_bias(t, pos, vel, valid)[0] == pytest.approx(math.sqrt((0.25**2 + 0.05**2) / 2), rel=0.1)
     # hovering (below 2 m/s), nothing can be measured across a track
     assert across_track_velocity_bias(t, pos, 0.1 * u, valid)[0] == 0.0
+
+
+def _circling_flight(seed: int, sigma: float, tau: float, duration_s: float = 60.0, dt: float = 0.02) -> Samples:
+    """A vehicle circling at 5 m/s whose velocity estimate is off across its track by a
+    Gauss-Markov bias (sigma, tau), drawn in its stationary distribution; the position is the
+    integral of the true velocity. Only the fields the bias reads are filled."""
+    rng = np.random.default_rng(seed)
+    n = int(round(duration_s / dt))
+    phi = math.exp(-dt / tau)
+    kicks = rng.standard_normal(n) * sigma * math.sqrt(1.0 - phi * phi)
+    kicks[0] = rng.standard_normal() * sigma
+    b = np.zeros(n)
+    b[0] = kicks[0]
+    for i in range(1, n):
+        b[i] = phi * b[i - 1] + kicks[i]
+    t = np.arange(n) * dt
+    u = np.column_stack([np.cos(0.2 * t), np.sin(0.2 * t)])
+    left = np.column_stack([-u[:, 1], u[:, 0]])
+    vel = 5.0 * u
+    true_vel = vel + b[:, None] * left
+    pos = np.vstack([np.zeros(2), np.cumsum(0.5 * (true_vel[1:] + true_vel[:-1]) * dt, axis=0)])
+    none = np.zeros(0)
+    return Samples(t_s=t, vel_ne_m_s=vel, valid=np.ones(n, bool), t_cmd_s=none, vel_cmd_raw_ne_m_s=np.zeros((0, 2)),
+                   yaw_rate_cmd_raw_rad_s=none, t_yaw_s=none, yaw_rate_rad_s=none, pos_ne_m=pos)
+
+
+def _alone(f: Samples):
+    return across_track_velocity_bias(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid)
+
+
+def test_the_pooled_bias_weighs_every_flight_by_its_pairs():
+    # Five minute-long flights of a fast bias and one of a slow one (which drifts furthest). Pooled,
+    # the drift at each lag is the root mean square over all the flights' pairs: the flights are
+    # equally long and all valid, so the same count of pairs each, and the pooled D^2 is the mean
+    # of the flights' own D^2.
+    flights = [_circling_flight(seed, 0.18, 2.0) for seed in range(5)] + [_circling_flight(5, 0.3, 8.0)]
+    sigma, tau, se, tau_se, pooled = pooled_across_track_bias(flights)
+    alone = [_alone(f)[4] for f in flights]
+    assert set(pooled) == set(alone[0]) and 10.0 in pooled
+    for lag, d in pooled.items():
+        assert d == pytest.approx(math.sqrt(np.mean([a[lag] ** 2 for a in alone])), rel=1e-9)
+    # The fitted process drifts as the pool does at 10 s (within the fit's 10 %), which neither
+    # median of the single flights' parameters does: they come from the five fast flights.
+    def drift_10s(s: float, t: float) -> float:
+        return math.sqrt(2.0) * s * t * math.sqrt(10.0 / t - 1 + math.exp(-10.0 / t))
+
+    assert drift_10s(sigma, tau) == pytest.approx(pooled[10.0], rel=0.1)
+    fits = [_alone(f) for f in flights]
+    medians = float(np.median([f[0] for f in fits])), float(np.median([f[1] for f in fits]))
+    assert drift_10s(*medians) < 0.85 * pooled[10.0]
+    assert 0.0 < se < math.inf and 0.0 < tau_se < math.inf
+    # A flight pooled with itself is that flight: the same drifts, the same fit.
+    one = flights[5]
+    assert pooled_across_track_bias([one, one])[:2] == pytest.approx(_alone(one)[:2], rel=1e-4)  # the fit's tolerance
+
+
+def test_the_pooled_bias_recovers_the_process_the_flights_share():
+    flights = [_circling_flight(seed, 0.2, 3.0) for seed in range(10, 22)]  # twelve minutes
+    sigma, tau, se, tau_se, _ = pooled_across_track_bias(flights)
+    assert sigma == pytest.approx(0.2, rel=0.15) and abs(sigma - 0.2) <= 3.0 * se
+    assert tau == pytest.approx(3.0, rel=0.4) and abs(tau - 3.0) <= 3.0 * tau_se
+
+
+def test_the_pooled_bias_refuses_flights_on_different_time_steps():
+    with pytest.raises(ValueError, match="one time step"):
+        pooled_across_track_bias([_circling_flight(1, 0.2, 3.0), _circling_flight(2, 0.2, 3.0, dt=0.04)])
 
 
 def test_the_velocity_is_integrated_over_the_autopilots_clock_not_the_logs():
