@@ -214,11 +214,12 @@ def median_row(rows: list[dict]) -> dict:
 
 
 def fly_on(target: Target, real: bool, mission: str, fly_opts: list[str], workdir: Path, timeout_s: float,
-           seed: int = 0) -> dict:
-    """Start the mock (``real`` False) or the binary, wait for it, fly the mission, stop it."""
+           seed: int = 0, later_s: float = 0.0) -> dict:
+    """Start the mock (``real`` False) or the binary, wait for it (a binary ``later_s`` longer than
+    its warm-up), fly the mission, stop it."""
     workdir.mkdir(parents=True, exist_ok=True)
     if real:
-        cmd, env, warmup_s, port = target.cmd, target.env, target.warmup_s, target.port
+        cmd, env, warmup_s, port = target.cmd, target.env, target.warmup_s + later_s, target.port
         if target.autopilot == "px4":
             cmd = [*cmd, "-w", str(workdir)]
     else:
@@ -265,19 +266,41 @@ def run_bench(args, targets: list[Target]) -> dict:
                  "max_duration_s": args.max_duration_s, "speedup": args.speedup, "autopilots": {}}
     seeds = range(args.mock_seeds)
     out["mock_seeds"] = args.mock_seeds
+    stagger_s = real_stagger_s(args)
+    out["real_runs"] = args.real_runs
     for t in targets:
         runs = [flight_row(fly_on(t, False, mission, opts, root / f"{t.autopilot}-mock" / f"seed-{k}", timeout_s, k),
                            limit) for k in seeds]
         mock = median_row(runs)
-        real = flight_row(fly_on(t, True, mission, opts, root / f"{t.autopilot}-real", timeout_s), limit)
+        real_dir = root / f"{t.autopilot}-real"
+        real_runs = [flight_row(fly_on(t, True, mission, opts, real_dir / f"run-{k}" if args.real_runs > 1 else real_dir,
+                                       timeout_s, later_s=k * stagger_s), limit) for k in range(args.real_runs)]
+        real = median_row(real_runs)
         ratio = None
         if mock.get("d_rms_m") and real.get("d_rms_m") is not None:
             ratio = real["d_rms_m"] / mock["d_rms_m"]
         entry = {"mock": mock, "real": real, "d_rms_ratio_real_mock": ratio}
         if len(runs) > 1:
             entry["mock_runs"] = runs
+        if len(real_runs) > 1:
+            entry["real_runs"] = real_runs
+            entry["real_later_s"] = [k * stagger_s for k in range(args.real_runs)]
         out["autopilots"][t.autopilot] = entry
     return out
+
+
+def real_stagger_s(args) -> float:
+    """How much later each further real flight starts after its binary's boot (``--real-stagger-s``).
+
+    A SITL binary replays the same sensor noise after every boot: PX4 SIH's simulated sensors draw
+    from the C library's ``rand()``, never seeded, so on a quiet machine two flights of a mission
+    begun the same time after boot are the same flight, and so are the drifts of its velocity
+    estimate (docs/real_firmware.md). Started later, a flight meets another stretch of that noise;
+    by default later by the whole flight and half a minute, so that no stretch is flown twice.
+    """
+    if args.real_stagger_s is not None:
+        return float(args.real_stagger_s)
+    return args.max_duration_s / args.speedup + 30.0
 
 
 def _mission_for(args) -> str:
@@ -297,9 +320,10 @@ def format_table(result: dict) -> str:
     """The two flights of each autopilot side by side."""
     lines = [f"mission {result['mission']} (method {result['method'] or 'as in the mission'}), "
              f"{result['max_duration_s']:g} s, speed-up {result['speedup']:g}"]
-    seeds = result.get("mock_seeds", 1)
+    seeds, reals = result.get("mock_seeds", 1), result.get("real_runs", 1)
     for ap, r in result["autopilots"].items():
-        lines.append(f"{'':16s}{'mock' if seeds == 1 else f'mock (median of {seeds})':>12s}{'real ' + ap:>16s}")
+        real_head = f"real {ap}" if reals == 1 else f"real {ap} (median of {reals})"
+        lines.append(f"{'':16s}{'mock' if seeds == 1 else f'mock (median of {seeds})':>12s}{real_head:>16s}")
         for k in METRICS:
             lines.append(f"{k:16s}{_cell(r['mock'], k):>12s}{_cell(r['real'], k):>16s}")
         for side in ("mock", "real"):
@@ -310,6 +334,9 @@ def format_table(result: dict) -> str:
         runs = [x["d_rms_m"] for x in r.get("mock_runs", []) if x.get("d_rms_m") is not None]
         if runs:
             lines.append(f"mock d_rms_m over its {len(runs)} seeds: {min(runs):.3f} to {max(runs):.3f}")
+        runs = [x["d_rms_m"] for x in r.get("real_runs", []) if x.get("d_rms_m") is not None]
+        if runs:
+            lines.append(f"real d_rms_m over its {len(runs)} flights: {min(runs):.3f} to {max(runs):.3f}")
     return "\n".join(lines)
 
 
@@ -338,6 +365,13 @@ def register(subparsers) -> None:
     p.add_argument("--mock-seeds", type=int, default=1, metavar="N",
                    help="fly the mock N times, with seeds 0..N-1 of its velocity-estimate bias, and report "
                         "each metric's median (default 1)")
+    p.add_argument("--real-runs", type=int, default=1, metavar="N",
+                   help="fly the real binary N times, each started afresh and flown --real-stagger-s later "
+                        "after its boot than the one before, and report each metric's median (default 1)")
+    p.add_argument("--real-stagger-s", type=float, metavar="S",
+                   help="how much later each further real flight starts (default: the flight time + 30 s, "
+                        "so that none meets the sensor noise another flew; a SITL replays the same noise "
+                        "after every boot)")
     p.add_argument("--workdir", help="where the flights' logs go (default: a new temporary directory)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
@@ -348,6 +382,10 @@ def run(args) -> int:
         raise CompanionError("bench sitl: --max-duration-s and --speedup: expected numbers > 0")
     if args.mock_seeds < 1:
         raise CompanionError(f"bench sitl: --mock-seeds: expected an integer >= 1, got {args.mock_seeds}")
+    if args.real_runs < 1:
+        raise CompanionError(f"bench sitl: --real-runs: expected an integer >= 1, got {args.real_runs}")
+    if args.real_stagger_s is not None and not (math.isfinite(args.real_stagger_s) and args.real_stagger_s >= 0):
+        raise CompanionError(f"bench sitl: --real-stagger-s: expected a number >= 0, got {args.real_stagger_s}")
     targets = check_binaries(args)
     result = run_bench(args, targets)
     print(json.dumps(result, indent=2) if args.json else format_table(result))

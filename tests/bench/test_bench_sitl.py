@@ -119,3 +119,68 @@ def test_a_mock_flown_with_several_seeds_reports_each_metric_s_median_and_the_sp
     target = px4_target("px4", "etc", None)
     argv = mock_cmd(target, 14999, 60.0, seed=7)[3:]
     assert config_from_args(build_parser().parse_args(argv)).seed == 7
+
+
+def test_several_real_flights_start_later_and_later_after_boot_and_report_their_medians(monkeypatch, tmp_path):
+    # A SITL replays the same sensor noise after every boot: the further real flights start later
+    # after their boot (by default the flight time and 30 s more), each from a fresh binary in a
+    # directory of its own, and the real side is their median.
+    from argparse import Namespace
+
+    from companion.bench import sitl
+
+    calls = []
+    real_d = iter([0.5, 0.3, 0.4])
+
+    def fake_fly_on(target, real, mission, opts, workdir, timeout_s, seed=0, later_s=0.0):
+        calls.append((real, later_s, workdir))
+        return {"d_rms_m": next(real_d) if real else 0.2, "exit": "max duration", "tlog": "unused"}
+
+    monkeypatch.setattr(sitl, "fly_on", fake_fly_on)
+    monkeypatch.setattr(sitl, "log_figures", lambda tlog, limit: {})
+    args = Namespace(mission="missions/paper_sine.yaml", method=None, a_limit_m_s2=2.0, max_duration_s=60.0,
+                     speedup=1.0, workdir=str(tmp_path), mock_seeds=1, real_runs=3, real_stagger_s=None)
+    out = sitl.run_bench(args, [px4_target("px4", "etc", None)])
+    reals = [c for c in calls if c[0]]
+    assert [c[1] for c in reals] == [0.0, 90.0, 180.0]
+    assert len({c[2] for c in reals}) == 3
+    side = out["autopilots"]["px4"]
+    assert side["real"]["d_rms_m"] == 0.4 and side["d_rms_ratio_real_mock"] == pytest.approx(2.0)
+    assert side["real_later_s"] == [0.0, 90.0, 180.0] and len(side["real_runs"]) == 3
+    text = format_table(out)
+    assert "real px4 (median of 3)" in text and "real d_rms_m over its 3 flights: 0.300 to 0.500" in text
+    # At twice real time the flight takes half the wall time; a given stagger is used as it is.
+    args.speedup, calls[:] = 2.0, []
+    real_d = iter([0.5, 0.3, 0.4])
+    sitl.run_bench(args, [px4_target("px4", "etc", None)])
+    assert [c[1] for c in calls if c[0]] == [0.0, 60.0, 120.0]
+    args.speedup, args.real_stagger_s, calls[:] = 1.0, 5.0, []
+    real_d = iter([0.5, 0.3, 0.4])
+    sitl.run_bench(args, [px4_target("px4", "etc", None)])
+    assert [c[1] for c in calls if c[0]] == [0.0, 5.0, 10.0]
+
+
+def test_a_later_real_flight_waits_that_much_longer_after_boot(monkeypatch, tmp_path):
+    from companion.bench import sitl
+
+    waits = []
+
+    class Exited:  # a binary that has already exited: fly_on reports it after the wait
+        def __init__(self, cmd, cwd, env=None):
+            self.proc = type("P", (), {"poll": lambda self: 1, "returncode": 1})()
+
+        def stop(self):
+            pass
+
+    monkeypatch.setattr(sitl, "Process", Exited)
+    monkeypatch.setattr(sitl.time, "sleep", waits.append)
+    row = sitl.fly_on(px4_target("px4", "etc", None), True, "m.yaml", [], tmp_path, 10.0, later_s=90.0)
+    assert "exited 1 at start" in row["error"] and waits == [100.0]  # PX4's 10 s warm-up + 90 s
+
+
+@pytest.mark.parametrize("option, value", [("--real-runs", "0"), ("--real-stagger-s", "-1")])
+def test_bad_real_run_options_are_refused_with_one_line(capsys, option, value):
+    assert main(["bench", "sitl", "missions/paper_sine.yaml", "--px4", sys.executable, "--px4-romfs", ".",
+                 option, value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and option in err[0]
