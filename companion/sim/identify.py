@@ -226,9 +226,11 @@ def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACRO
     alike). The median of their ``sigma`` and the median of their ``tau``, taken apart, come from
     different flights and can describe a process none of them flew: one flight of a slow bias
     among six is dropped by both medians, though it drifts furthest. Pooled, it counts for its
-    share of the seconds. ValueError when the flights are not on one time step or none has
-    positions.
+    share of the seconds. ValueError when there are no flights, when they are not on one time step
+    or when one has no positions.
     """
+    if not flights:
+        raise ValueError("pooled bias: expected at least one flight, got none")
     steps = {float(f.t_s[1] - f.t_s[0]) for f in flights if f.t_s.size > 1}
     if len(steps) != 1:
         raise ValueError(f"pooled bias: expected flights on one time step, got steps {sorted(steps)}")

@@ -206,6 +206,8 @@ def test_the_pooled_bias_recovers_the_process_the_flights_share():
 def test_the_pooled_bias_refuses_flights_on_different_time_steps():
     with pytest.raises(ValueError, match="one time step"):
         pooled_across_track_bias([_circling_flight(1, 0.2, 3.0), _circling_flight(2, 0.2, 3.0, dt=0.04)])
+    with pytest.raises(ValueError, match="at least one flight"):
+        pooled_across_track_bias([])
 
 
 def test_the_velocity_is_integrated_over_the_autopilots_clock_not_the_logs():
