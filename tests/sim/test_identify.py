@@ -13,8 +13,9 @@ import yaml
 
 from companion.cli.main import main
 from companion.guidance.types import VehicleModel
-from companion.sim.identify import (Samples, across_track_velocity_bias, identify, pooled_across_track_bias, lateral_m_s2, resample, simulate,
-                                   velocity_bias)
+from companion.io.idlog import read_identification_samples
+from companion.sim.identify import (Samples, across_track_velocity_bias, identify, lateral_m_s2, pooled_across_track_bias,
+                                   resample, simulate, velocity_bias)
 from sitl_mock.personality import IDENTIFIED_COPTER_MODELS
 from sitl_mock.vehicle import VehicleModel as MockVehicle
 from sitl_mock.vehicle import VehicleParams
@@ -382,24 +383,26 @@ def test_px4_identification_flight_needs_the_slow_tail_and_names_the_yaw_limit_i
     assert_the_mock_flies_this_identification("px4", report, skip=("vel_bias_m_s", "vel_bias_tc_s"))
 
 
-def test_px4_mock_drifts_like_a_real_mission_flight_not_like_the_identification_schedule(capsys):
-    # PX4 SIH's velocity-estimate bias is larger under the identification schedule than in any
-    # mission, and larger across the track than along it: the mock flies the missions' bias
-    # across the track (set from real flights of missions outside the gallery) on both axes. The
-    # shared real mission flight, not among those, must agree with it within the spread of
-    # single mission flights (+-40 %), and the identification flight's must lie more than three
-    # of its standard errors above it.
+def test_px4_mock_drifts_as_the_shared_real_px4_flights_do():
+    # The mock's PX4 bias comes from real flights of missions outside the gallery, each begun at
+    # another time after its boot (a SITL replays its sensor noise after every boot), pooled
+    # (docs/vehicle_model.md). The two shared real PX4 flights are not among them: pooled alike,
+    # the drift across the track they measure over 5 and 10 s, what moves a track, must be what
+    # the mock's process drifts (closed form of the integrated Gauss-Markov bias) within 25 %,
+    # and the mock's sigma within three standard errors of theirs.
     mock = IDENTIFIED_COPTER_MODELS["px4"]
-    q = {}
-    for name in ("px4-sih-racetrack-predictive.tlog", "px4-sih-id.tlog"):
-        assert main(["identify", str(shared(REAL / name)), "--json", "--partial"]) == 0
-        q[name] = json.loads(capsys.readouterr().out)["quality"]
-    mission, ident = q["px4-sih-racetrack-predictive.tlog"], q["px4-sih-id.tlog"]
-    assert mock["vel_bias_m_s"] == pytest.approx(mission["vel_bias_across_m_s"], rel=0.4)
-    assert ident["vel_bias_across_m_s"] - mock["vel_bias_m_s"] > 3.0 * ident["vel_bias_across_se_m_s"]
-    # the correlation time within twice the mission flight's standard error
-    assert abs(mock["vel_bias_tc_s"] - mission["vel_bias_across_tc_s"]) <= 2.0 * mission["vel_bias_across_tc_se_s"]
+    flights = [read_identification_samples(shared(REAL / name))
+               for name in ("px4-sih-racetrack-predictive.tlog", "px4-sih-id.tlog")]
+    sigma, _, se, _, drift = pooled_across_track_bias(flights)
 
+    def mock_drift(lag_s: float) -> float:
+        s, tau = mock["vel_bias_m_s"], mock["vel_bias_tc_s"]
+        r = lag_s / tau
+        return math.sqrt(2.0) * s * tau * math.sqrt(r - 1.0 + math.exp(-r))
+
+    for lag in (5.0, 10.0):
+        assert mock_drift(lag) == pytest.approx(drift[lag], rel=0.25), lag
+    assert abs(mock["vel_bias_m_s"] - sigma) <= 3.0 * se
 
 def test_a_gentle_flight_is_refused_naming_the_parameter_it_cannot_identify(capsys):
     code = main(["identify", str(shared(SINE))])
