@@ -512,7 +512,7 @@ def connect_autopilot(connect: str, *, heartbeat_timeout_s: float,
 # cannot fall between the two: a setpoint the autopilot flew is always in the tlog. (The companion's
 # other threads block them for good, so that none of them takes the signal meanwhile.)
 INTERRUPT_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
-_CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX
+CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX
 
 
 class _TlogTap:
@@ -523,7 +523,7 @@ class _TlogTap:
 
     def write(self, buf) -> None:
         try:
-            if _CAN_HOLD_SIGNALS:
+            if CAN_HOLD_SIGNALS:
                 signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPT_SIGNALS)
             if not self.link._transport.send(bytes(buf)):
                 return
@@ -532,7 +532,7 @@ class _TlogTap:
             self.link.sent += 1
         finally:
             # An interrupt that came meanwhile is raised here, after the record.
-            if _CAN_HOLD_SIGNALS:
+            if CAN_HOLD_SIGNALS:
                 signal.pthread_sigmask(signal.SIG_UNBLOCK, INTERRUPT_SIGNALS)
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from companion.errors import LinkError
 from companion.geometry import frames
-from companion.io.link import INTERRUPT_SIGNALS
+from companion.io.link import CAN_HOLD_SIGNALS, INTERRUPT_SIGNALS
 from companion.mission.model import Mission
 
 
@@ -67,7 +67,7 @@ class MockProcess:
 
     def _read(self) -> None:
         assert self.proc is not None and self.proc.stdout is not None
-        if hasattr(signal, "pthread_sigmask"):  # Ctrl-C and SIGTERM are the main thread's (link.py)
+        if CAN_HOLD_SIGNALS:  # Ctrl-C and SIGTERM are the main thread's (link.py)
             signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPT_SIGNALS)
         for line in self.proc.stdout:
             line = line.rstrip("\n")

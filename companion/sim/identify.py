@@ -299,14 +299,15 @@ def _fit_bias(segments: list[tuple[np.ndarray, np.ndarray]], dt: float) -> tuple
     """``(sigma, tau, D by lag)`` fitted to the drifts ``e`` over their samples ``ok``, one
     ``(e, ok)`` per flight (see :func:`velocity_bias`); None when fewer than three lags can be
     measured. A flight adds its pairs at a lag up to a quarter of its own valid span."""
+    # Per flight: its valid span, and where a pair is usable (no invalid sample between its ends).
+    flights = [(e, ok, float(ok.sum()) * dt, np.cumsum(~ok)) for e, ok in segments]
     lags, meas, pairs = [], [], []
     for lag in BIAS_LAGS_S:
         k = int(round(lag / dt))
         squares, count, used = 0.0, 0, 0
-        for e, ok in segments:
-            if k < 1 or lag > float(ok.sum()) * dt / 4.0:
+        for e, ok, span, breaks in flights:
+            if k < 1 or lag > span / 4.0:
                 continue
-            breaks = np.cumsum(~ok)  # a pair is usable when no invalid sample lies between its ends
             use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
             d = e[k:][use] - e[:-k][use]
             squares += float(np.sum(d * d))
