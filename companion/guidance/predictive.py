@@ -68,6 +68,8 @@ from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, Gu
 
 SQRT2 = math.sqrt(2.0)
 WINDOW_SPACING_M = 1.0  # spacing of the local path samples the rollouts project onto
+WINDOW_HOME_INDEX = 2  # the window's sample at the projection it was built from (it starts 2 m behind)
+BAND_MARGIN_M = 3.0  # the nearest sample is searched within this much path, plus the motion, of the last one
 MIN_SPEED_M_S = 0.1
 FD_STEP_M_S2 = 0.05  # finite-difference step of the plan Jacobian
 LINE_SEARCH = np.array([1.0, 0.5, 0.25])  # step fractions tried (in one batch) after a Gauss-Newton step
@@ -169,7 +171,8 @@ class _Window:
 
     def __init__(self, path: PathLike, s0_m: float, length_m: float) -> None:
         total = float(path.length_m)
-        s = s0_m + np.arange(-2.0, length_m + WINDOW_SPACING_M, WINDOW_SPACING_M)
+        self.s0_m, self.closed, self.total_m = float(s0_m), bool(path.closed), total
+        s = s0_m + np.arange(-WINDOW_HOME_INDEX * WINDOW_SPACING_M, length_m + WINDOW_SPACING_M, WINDOW_SPACING_M)
         beyond = np.zeros(0)
         if path.closed:
             s = np.mod(s, total)
@@ -208,6 +211,13 @@ class _Window:
         self.at_kappa = np.stack([k, k[after] - k])
         self._from: np.ndarray | None = None
 
+    def index_of(self, s_m: float) -> int:
+        """The sample at arc length ``s_m`` (the law's own projection), clipped to the window."""
+        ds = s_m - self.s0_m
+        if self.closed and self.total_m > 0.0:
+            ds = (ds + 0.5 * self.total_m) % self.total_m - 0.5 * self.total_m
+        return min(max(WINDOW_HOME_INDEX + int(round(ds / WINDOW_SPACING_M)), 0), self.x.size - 1)
+
     def from_samples(self, i: np.ndarray) -> np.ndarray:
         """Row r: which samples have an index >= ``i[r]``."""
         if self._from is None:
@@ -244,14 +254,19 @@ _MIN_SPEED, _SQRT2, _PI, _TWO_PI = _const(MIN_SPEED_M_S), _const(SQRT2), _const(
 _ZERO, _ONE, _TWO, _TINY_M, _TINY_STEP_M = _const(0.0), _const(1.0), _const(2.0), _const(1e-6), _const(1e-12)
 
 
-def _project(win: _Window, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _project(win: _Window, xy: np.ndarray, band: _Band | None = None,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Nearest sample of every column of ``xy`` (x and y in rows), signed cross-track error
     (positive left), squared distance matrix, ``win.at_nearest`` at the nearest sample, and the
-    distance along its tangent (not clipped)."""
+    distance along its tangent (not clipped).
+
+    With a ``band``, the nearest sample is searched only near each row's previous one (see
+    :class:`_Band`), and the band moves on to the sample found; the squared distance matrix
+    returned is the whole window's (the goal search needs it)."""
     dxy = win.xy - xy[:, :, None]
     dxy *= dxy
     r2 = dxy[0] + dxy[1]
-    i = r2.argmin(axis=1)
+    i = r2.argmin(axis=1) if band is None else band.nearest(r2)
     near = win.at_nearest.take(i, axis=1)
     e = xy - near[:2]  # from the sample to the vehicle
     te = near[2:4] * e
@@ -267,9 +282,59 @@ def _project(win: _Window, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     return i, d, r2, near, along
 
 
-def _nearest(win: _Window, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+class _Band:
+    """Keeps each row's projection on its own branch of a path that comes back near itself.
+
+    The window holds the path from just behind the vehicle to beyond the horizon; where the path
+    crosses itself (a figure-eight, a self-crossing survey) or loops back within that length, the
+    nearest window sample can lie on a later branch, and a projection taken over the whole window
+    jumps to it: the pursuit then chases the path a loop ahead, and the rollouts score the wrong
+    branch. A projection that follows the vehicle moves continuously instead, as the law's own
+    (:func:`~companion.guidance.path_frame.path_frame` with its hint) and the benches' measurement do.
+    So each row's nearest sample is searched from ``back_m`` behind to ``ahead_m`` ahead of the
+    sample it had before (its "centre"); the band moves with the rows. A band that spans the
+    whole window (a vehicle farther from the path than the window is long) changes nothing.
+    """
+
+    def __init__(self, win: _Window, centre: np.ndarray, back_m: float, ahead_m: float) -> None:
+        self.centre = np.asarray(centre, dtype=np.intp)
+        back = int(math.ceil(back_m / WINDOW_SPACING_M))
+        ahead = int(math.ceil(ahead_m / WINDOW_SPACING_M))
+        n = win.x.size
+        self.whole = back >= n and ahead >= n
+        self._win = win
+        self._back, self._ahead = back, ahead
+        self._penalty: np.ndarray | None = None
+        if not self.whole and self.centre.size > 1 and n <= 600:
+            # The rollouts search every step: one table row per centre, 0 inside the band, inf outside.
+            offset = win.index[None, :] - win.index[:, None]
+            self._penalty = np.where((offset >= -back) & (offset <= ahead), 0.0, np.inf)
+
+    def nearest(self, r2: np.ndarray) -> np.ndarray:
+        """The nearest sample of each row within its band; the band moves there."""
+        if not self.whole:
+            if self._penalty is not None:
+                r2 = r2 + self._penalty.take(self.centre, axis=0)
+            else:
+                offset = self._win.index - self.centre[:, None]
+                r2 = np.where((offset >= -self._back) & (offset <= self._ahead), r2, np.inf)
+        self.centre = r2.argmin(axis=1)
+        return self.centre
+
+
+def _band(win: _Window, centre: np.ndarray, speed_m_s: float, interval_s: float, crosstrack_m: float) -> _Band:
+    """The band of a vehicle at ``crosstrack_m`` from the path moving at ``speed_m_s``, searched
+    every ``interval_s``: its motion over one interval ahead, plus a margin, plus twice its
+    distance from the path both ways (near the centre of a bend, the projection of a vehicle off
+    the path runs faster than the vehicle)."""
+    off = BAND_MARGIN_M + 2.0 * abs(crosstrack_m)
+    return _Band(win, centre, off, off + 2.0 * speed_m_s * interval_s)
+
+
+def _nearest(win: _Window, x: np.ndarray, y: np.ndarray, band: _Band | None = None,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Nearest sample index, signed cross-track error (positive left) and squared distance matrix."""
-    i, d, r2, _, _ = _project(win, np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)]))
+    i, d, r2, _, _ = _project(win, np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)]), band)
     return i, d, r2
 
 
@@ -296,6 +361,7 @@ def capture_reference(d0_m: float, d_rate0_m_s: float, tc_s: float, t_s: np.ndar
 
 def pursuit_command(win: _Window, x: np.ndarray, y: np.ndarray, course_rad: np.ndarray, speed_m_s: np.ndarray,
                     look_m: np.ndarray, a_max_m_s2: float, curvature_ff: float = 0.0, lead_s: float = 0.0,
+                    band: _Band | None = None,
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Batched pursuit command (arrays of equal length; returns commands, L_eff, goal x, goal y,
     and the signed cross-track error at the vehicle).
@@ -314,16 +380,20 @@ def pursuit_command(win: _Window, x: np.ndarray, y: np.ndarray, course_rad: np.n
     (pursuit minus its on-path value) is unchanged. ``kappa_P`` is read ``V lead_s`` metres
     beyond P (the law passes its lag model's time constant): a first-order inner loop follows a
     curvature ramp one time constant late, and leading the feed-forward by it cancels that.
+
+    With a ``band`` (:class:`_Band`) the closest sample is searched near each row's previous one,
+    so that the goal stays on the vehicle's branch of a path that crosses itself.
     """
     a, l_eff, goal, d = _pursue(win, np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)]),
-                                course_rad, speed_m_s, look_m, curvature_ff, lead_s)
+                                course_rad, speed_m_s, look_m, curvature_ff, lead_s, band)
     if a_max_m_s2 < math.inf:
         a = np.minimum(np.maximum(a, -a_max_m_s2), a_max_m_s2)
     return a, l_eff, goal[0], goal[1], d
 
 
 def _pursue(win: _Window, xy: np.ndarray, course_rad: np.ndarray, speed_m_s: np.ndarray, look_m: np.ndarray,
-            curvature_ff: float, lead_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            curvature_ff: float, lead_s: float, band: _Band | None = None,
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`pursuit_command` (not clipped) for the positions ``xy`` (x and y in rows): returns
     the commands, L_eff, the goals (x and y in rows) and the cross-track errors.
 
@@ -334,7 +404,7 @@ def _pursue(win: _Window, xy: np.ndarray, course_rad: np.ndarray, speed_m_s: np.
     """
     n = win.x.size
     v = np.maximum(speed_m_s, _MIN_SPEED)
-    i0, d, r2, near, along = _project(win, xy)
+    i0, d, r2, near, along = _project(win, xy, band)
     l_eff = np.maximum(look_m, _SQRT2 * np.abs(d))
     # The goal sample j: the first at index >= i0 and distance >= L_eff (else the last one).
     r = np.sqrt(r2)
@@ -508,6 +578,7 @@ class PredictiveGuidance:
         self._last_t: float | None = None
         self._next_reopt_t = -math.inf
         self._win: _Window | None = None
+        self._s_win, self._d_win = 0.0, 0.0  # the law's projection and cross-track error, this tick
         self.reoptimisations = 0
         # The vehicle model the law plans with: the nominal one, or what the monitor found.
         self._lag_s = p.lag_s
@@ -557,6 +628,7 @@ class PredictiveGuidance:
         # nothing (V cos(h) is never -0.0), so it is skipped.
         wind = np.array([[p.wind_x_m_s], [p.wind_y_m_s]]) if p.wind_x_m_s or p.wind_y_m_s else None
         trig = np.empty((2, k))
+        band = _band(win, np.full(k, win.index_of(self._s_win)), v_air, p.rollout_dt_s, self._d_win)
         ds, us = [], []
         for n in range(self._steps):
             np.cos(h, out=trig[0])
@@ -565,7 +637,7 @@ class PredictiveGuidance:
             if wind is not None:
                 ground += wind
             u, _, _, d = _pursue(win, xy, np.arctan2(ground[1], ground[0]), np.hypot(ground[0], ground[1]), look_m,
-                                 cff, lead)
+                                 cff, lead, band)
             u += step_plans[n]
             if limit < math.inf:
                 u = np.minimum(np.maximum(u, -limit), limit)
@@ -604,7 +676,7 @@ class PredictiveGuidance:
             return None
         win = self._win
         assert win is not None  # set by reoptimise() before any rollout
-        i0, d0, _ = _nearest(win, np.array([state.x_m]), np.array([state.y_m]))
+        i0, d0, _ = _nearest(win, np.array([state.x_m]), np.array([state.y_m]), self._tick_band(state))
         i = int(i0[0])
         vx = state.speed_m_s * math.cos(state.course_rad)
         vy = state.speed_m_s * math.sin(state.course_rad)
@@ -617,7 +689,15 @@ class PredictiveGuidance:
         p = self.params
         v_g = max(state.speed_m_s, MIN_SPEED_M_S)
         reach = v_g * (p.horizon_s + p.reopt_period_s) * 1.3 + 1.5 * max(p.l_max_m, SQRT2 * abs(crosstrack_m)) + 5.0
+        self._s_win, self._d_win = s_proj_m, crosstrack_m
         return _Window(self.path, s_proj_m, reach)
+
+    def _tick_band(self, state: VehicleState) -> _Band:
+        """The band of the vehicle itself: around the law's own projection (continuous along the
+        path), as wide as the vehicle's distance from it asks."""
+        win = self._win
+        assert win is not None
+        return _band(win, np.array([win.index_of(self._s_win)]), state.speed_m_s, 0.0, self._d_win)
 
     def reoptimise(self, t_s: float, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> float:
         """Choose the look-ahead distance and refine the correction plan; returns the plan's cost.
@@ -697,6 +777,7 @@ class PredictiveGuidance:
                 self._plan = np.zeros(p.plan_segments)
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
         self._s_hint = f.s_m
+        self._s_win, self._d_win = f.s_m, f.crosstrack_m
         reoptimised = False
         if self._capture_side:  # turning round (below): no plan, only the goal is needed
             self._win = self._window(state, f.s_m, f.crosstrack_m)
@@ -708,7 +789,7 @@ class PredictiveGuidance:
         a, l_eff, gx, gy, _ = pursuit_command(
             self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
             np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff,
-            self._lag_s)
+            self._lag_s, self._tick_band(state))
         seg = min(int((t_s - self._plan_t0) / self._segment_s), p.plan_segments - 1)
         correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
         a_cmd = min(max(float(a[0]) + correction, -self._a_max), self._a_max)
@@ -716,12 +797,22 @@ class PredictiveGuidance:
         # is pointing away; turn round towards it at the law's bound instead of planning.
         behind = capture_side(state.x_m, state.y_m, state.course_rad, float(gx[0]), float(gy[0]),
                               f.tx, f.ty, self._capture_side)
-        if behind and not self._capture_side and abs(f.crosstrack_m) > CAPTURE_SIDE_MIN_OFFSET_M:
+        if behind and not self._capture_side:
+            off_path = abs(f.crosstrack_m) > CAPTURE_SIDE_MIN_OFFSET_M
             # A new capture off the path: turn towards the closest point if that is behind too.
             # On the path the goal decides: the closest point's side is there the sign of an error
             # of centimetres (of noise, on a real vehicle), and following it turned a vehicle
             # started on the path facing across it the long way round.
-            behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty, 0) or behind
+            p_behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty,
+                                    0) if off_path else 0
+            going_its_way = math.cos(state.course_rad) * f.tx + math.sin(state.course_rad) * f.ty >= 0.0
+            if going_its_way and not p_behind:
+                # Not pointing away: the path ahead bends back within the look-ahead distance (a
+                # tight loop, a hairpin), and the pursuit with its plan follows it; a turn round
+                # here left a loop of a self-crossing path on the held-out bench (random_1119).
+                behind = 0
+            elif p_behind:
+                behind = p_behind
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
         if self._capture_side:
