@@ -216,7 +216,7 @@ class _Window:
         ds = s_m - self.s0_m
         if self.closed and self.total_m > 0.0:
             ds = (ds + 0.5 * self.total_m) % self.total_m - 0.5 * self.total_m
-        return min(max(WINDOW_HOME_INDEX + int(round(ds / WINDOW_SPACING_M)), 0), self.x.size - 1)
+        return int(min(max(WINDOW_HOME_INDEX + int(round(ds / WINDOW_SPACING_M)), 0), self.x.size - 1))
 
     def from_samples(self, i: np.ndarray) -> np.ndarray:
         """Row r: which samples have an index >= ``i[r]``."""
