@@ -31,10 +31,23 @@ def test_quick_perf_json_has_every_documented_key(capsys):
         assert 0 < step["median"] <= step["p99"]
     assert 0 < r["reoptimisation_ms"]["median"] <= r["reoptimisation_ms"]["p99"]
     assert r["worst_tick_ms"] >= r["guidance_step_us"]["corrector_reopt"]["median"] / 1e3
-    assert set(r["loop_latency_ms"]) == {"50hz", "200hz"}
+    assert set(r["loop_latency_ms"]) == {"50hz", "200hz", "50hz_predictive"}
     assert set(r["loop_latency_ms"]["50hz"]) >= {"p50", "p99"}
     for key in ("cpu_percent_50hz", "rss_mb"):
         assert key in r
     assert r["sim_realtime_factor"] > 1.0
     assert r["paper_bench_s"] > 0
     assert r["replay_msgs_per_s"] > 0
+    # predictive's mean over every tick lies between its ordinary and its re-optimising ticks
+    g = r["guidance_step_us"]
+    assert g["predictive"]["median"] / 1e3 < r["predictive_tick_mean_ms"] < g["predictive_reopt"]["p99"] / 1e3
+    assert r["predictive_reopt_p99_ms"] == g["predictive_reopt"]["p99"] / 1e3
+    assert set(r["pass"]) >= {"predictive_tick_mean_ms", "predictive_reopt_p99_ms", "loop_latency_p99_ms_50hz_predictive"}
+    assert r["pass"]["loop_latency_p99_ms_50hz_predictive"] == "n/a"  # --no-live
+
+
+def test_predictive_targets_are_the_documented_ones():
+    assert _check("predictive_tick_mean_ms", 0.3) == "pass"
+    assert _check("predictive_tick_mean_ms", 0.31) == "FAIL"
+    assert _check("predictive_reopt_p99_ms", 5.01) == "FAIL"
+    assert _check("loop_latency_p99_ms_50hz_predictive", 2.0) == "pass"
