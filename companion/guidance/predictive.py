@@ -62,6 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from companion.guidance import rollout_kernel
 from companion.guidance.capture import capture_command_m_s2, capture_side
 from companion.guidance.path_frame import PathLike, frame_output, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
@@ -303,7 +304,7 @@ class _Band:
         n = win.x.size
         self.whole = back >= n and ahead >= n
         self._win = win
-        self._back, self._ahead = back, ahead
+        self.back, self.ahead = back, ahead  # in samples
         self._penalty: np.ndarray | None = None
         if not self.whole and self.centre.size > 1 and n <= 600:
             # The rollouts search every step: one table row per centre, 0 inside the band, inf outside.
@@ -317,7 +318,7 @@ class _Band:
                 r2 = r2 + self._penalty.take(self.centre, axis=0)
             else:
                 offset = self._win.index - self.centre[:, None]
-                r2 = np.where((offset >= -self._back) & (offset <= self._ahead), r2, np.inf)
+                r2 = np.where((offset >= -self.back) & (offset <= self.ahead), r2, np.inf)
         self.centre = r2.argmin(axis=1)
         return self.centre
 
@@ -585,6 +586,10 @@ class PredictiveGuidance:
         self._a_max = p.a_max_m_s2
         self.monitor = ModelMonitor(p.lag_s, p.a_max_m_s2) if p.adapt_model else None
         self._capture_side = 0  # the side of the capture turn (companion.guidance.capture), 0: none
+        # The rollouts compiled (companion.guidance.rollout_kernel) when numba is installed; the
+        # numpy ones otherwise, or with this set False. Compiled before the first tick.
+        self.compiled = rollout_kernel.AVAILABLE
+        rollout_kernel.warm_up()
 
     def start_projection_at(self, s_m: float) -> None:
         """Seed the projection (e.g. at the path start when a mid-course phase hands over)."""
@@ -629,6 +634,15 @@ class PredictiveGuidance:
         wind = np.array([[p.wind_x_m_s], [p.wind_y_m_s]]) if p.wind_x_m_s or p.wind_y_m_s else None
         trig = np.empty((2, k))
         band = _band(win, np.full(k, win.index_of(self._s_win)), v_air, p.rollout_dt_s, self._d_win)
+        if rollout_kernel.rollout is not None and self.compiled:
+            return rollout_kernel.rollout(
+                win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m), float(state.y_m),
+                heading, float(self._a_hat), np.ascontiguousarray(look_m, dtype=float),
+                np.ascontiguousarray(step_plans, dtype=float), v_air, float(p.wind_x_m_s), float(p.wind_y_m_s),
+                self._alpha(p.rollout_dt_s), float(p.rollout_dt_s), float(cff), float(lead), float(limit),
+                int(band.centre[0]), band.back, band.ahead, band.whole,
+                np.zeros(self._steps) if d_ref_m is None else np.ascontiguousarray(d_ref_m, dtype=float),
+                math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S)
         ds, us = [], []
         for n in range(self._steps):
             np.cos(h, out=trig[0])
