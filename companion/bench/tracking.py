@@ -325,6 +325,20 @@ def fronts_by_group(rows: list[dict]) -> dict:
     return {k: {law: pareto_front(p) for law, p in v.items()} for k, v in groups.items()}
 
 
+def points_below_predictive(fronts: dict) -> list[dict]:
+    """The other laws' front points that lie below the predictive front (``{law: front}``)."""
+    pred_front = fronts.get("predictive", [])
+    beaten = []
+    for law, front in fronts.items():
+        if law == "predictive":
+            continue
+        for a, d in front:
+            dp = front_at(pred_front, a)
+            if dp is not None and d < dp - 1e-9:
+                beaten.append({"law": law, "a_rms_m_s2": a, "d_rms_m": d, "predictive_d_rms_m": dp})
+    return beaten
+
+
 def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> list[dict]:
     """Per scenario and model: which law tracks best at the a_rms of our default tuning.
 
@@ -347,15 +361,7 @@ def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> li
         ranked = sorted(valid.items(), key=lambda kv: kv[1])
         best_law, best_d = ranked[0] if ranked else (None, None)
         runner = ranked[1] if len(ranked) > 1 else (None, None)
-        pred_front = laws.get("predictive", [])
-        beaten = []
-        for law, front in laws.items():
-            if law == "predictive":
-                continue
-            for a, d in front:
-                dp = front_at(pred_front, a)
-                if dp is not None and d < dp - 1e-9:
-                    beaten.append({"law": law, "a_rms_m_s2": a, "d_rms_m": d, "predictive_d_rms_m": dp})
+        beaten = points_below_predictive(laws)
         entry.update(
             a_rms_ref_m_s2=a_ref, best_law=best_law, best_d_rms_m=best_d,
             runner_up=runner[0], runner_up_d_rms_m=runner[1],
@@ -364,6 +370,54 @@ def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> li
             predictive_beaten_at=beaten,
         )
         out.append(entry)
+    return out
+
+
+#: The smallest lambda (s^4) a refinement tries below the sweep's (``--refine``).
+REFINE_LAMBDA_FLOOR_S4 = 1e-4
+
+
+def refinement_settings(rows: list[dict]) -> dict[tuple[str, str], list[float]]:
+    """The predictive settings to fly next so that its front is known at the a_rms of every
+    baseline point that lies below it (``--refine``): ``{(scenario, model): [lambda, ...]}``.
+
+    A front sampled at a few settings is drawn as straight lines between them; where it is curved
+    a line lies above it, and a baseline point there can be "below the front" only because the
+    front was not sampled there. For every such point, the lambda that should fly its a_rms is
+    interpolated between the two predictive runs whose a_rms bracket it (linearly in log lambda,
+    kept within the middle half of the bracket so that repeated rounds close in as a bisection
+    does); above the a_rms of predictive's smallest lambda, a third of it (not below
+    :data:`REFINE_LAMBDA_FLOOR_S4`). Settings already flown are not returned. Baseline points are
+    taken as flown: they are what is compared.
+    """
+    out: dict[tuple[str, str], list[float]] = {}
+    for key, fronts in fronts_by_group(rows).items():
+        beaten = points_below_predictive(fronts)
+        if not beaten:
+            continue
+        runs = sorted((r["setting"], r["a_rms_m_s2"]) for r in rows
+                      if (r["scenario"], r["model"]) == key and r["law"] == "predictive"
+                      and math.isfinite(r["a_rms_m_s2"]) and math.isfinite(r["d_rms_m"]))
+        if not runs:
+            continue
+        flown = {f"{lam:.4g}" for lam, _ in runs}
+        wanted: list[float] = []
+        for point in beaten:
+            a_b = point["a_rms_m_s2"]
+            lam = None
+            if a_b >= max(a for _, a in runs):
+                lam = runs[0][0] / 3.0 if runs[0][0] / 3.0 >= REFINE_LAMBDA_FLOOR_S4 else None
+            else:
+                for (l0, a0), (l1, a1) in zip(runs, runs[1:]):  # lambda increasing
+                    if min(a0, a1) <= a_b <= max(a0, a1) and a0 != a1:
+                        f = min(max((a_b - a0) / (a1 - a0), 0.25), 0.75)
+                        lam = math.exp(math.log(l0) + f * (math.log(l1) - math.log(l0)))
+                        break
+            if lam is not None and f"{lam:.4g}" not in flown:
+                flown.add(f"{lam:.4g}")
+                wanted.append(float(f"{lam:.4g}"))
+        if wanted:
+            out[key] = sorted(wanted)
     return out
 
 
@@ -546,6 +600,9 @@ class _Progress:
         except ImportError:
             print(f"\r{done}/{total} runs", end="", file=sys.stderr, flush=True)
             return
+        if self.bar is not None and self.bar.total != total:  # a refinement round: a bar of its own
+            self.bar.close()
+            self.bar = None
         if self.bar is None:
             self.bar = tqdm(total=total, initial=done, unit="run", file=sys.stderr, dynamic_ncols=True)
         self.bar.update(done - self.bar.n)
@@ -582,10 +639,15 @@ def register(subparsers) -> None:
     parser.add_argument("--scheduler", metavar="tcp://HOST:8786", help="--dask: a running scheduler instead of a local cluster")
     parser.add_argument("--out", metavar="FILE.jsonl", help="stream every finished row to FILE; a rerun with the "
                         "same FILE resumes (runs already there are not run again)")
+    parser.add_argument("--refine", type=int, default=0, metavar="ROUNDS",
+                        help="after the sweep, up to ROUNDS rounds of predictive runs at the lambda that flies "
+                             "the a_rms of each baseline point below its front (default 0: the sweep alone)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
+    if args.refine < 0:
+        raise CompanionError(f"bench tracking: --refine: expected a count >= 0, got {args.refine}")
     specs, missing = select_specs(args)
     laws = args.law or list(LAW_ORDER)
     models = [m for m in MODELS if m.name in args.model] if args.model else MODELS
@@ -595,6 +657,17 @@ def run(args) -> int:
     progress = _Progress()
     try:
         rows, counts = run_tasks(tasks, max(1, args.jobs), progress, executor=executor, out=args.out)
+        by_key = {(spec.name, model.name): (spec, model) for spec in specs for model in models}
+        refined = 0
+        for _ in range(args.refine):
+            more = [Task(*by_key[key], "predictive", lam) for key, lams in refinement_settings(rows).items()
+                    for lam in lams if key in by_key]
+            if not more:
+                break
+            extra, more_counts = run_tasks(more, max(1, args.jobs), progress, executor=executor, out=args.out)
+            rows += extra
+            refined += len(extra)
+            counts = {k: counts[k] + more_counts[k] for k in counts}
     finally:
         progress.close()
     wall = time.perf_counter() - t0
@@ -611,7 +684,8 @@ def run(args) -> int:
             print(f"wrote {name}", file=sys.stderr)
     if args.json:
         print(json.dumps(finite_json({"rows": rows, "summary": summary, "missing_scenarios": missing,
-                                      "scenarios": [spec.summary() for spec in specs], "wall_s": wall}),
+                                      "scenarios": [spec.summary() for spec in specs], "wall_s": wall,
+                                      "refined_runs": refined}),
                          allow_nan=False))
     else:
         print(render_tables(rows, summary))

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from bench_scenes import LinePath
-from companion.bench.tracking import front_at, pareto_front, summarise, true_crosstrack_m
+from companion.bench.tracking import (REFINE_LAMBDA_FLOOR_S4, front_at, pareto_front, refinement_settings, summarise,
+                                      true_crosstrack_m)
 from companion.cli.main import main
 
 
@@ -42,6 +43,43 @@ def test_summary_names_the_law_with_the_lowest_front_at_our_acceleration():
     assert s["margin_m"] == pytest.approx(0.05)
     # npfg's (1.6, 0.2) lies below predictive's front there (0.30): reported honestly.
     assert [(b["law"], b["a_rms_m_s2"]) for b in s["predictive_beaten_at"]] == [("npfg", 1.6)]
+
+
+def _rows(points: dict) -> list[dict]:
+    return [{"scenario": "s", "model": "lag", "law": law, "setting": setting, "a_rms_m_s2": a, "d_rms_m": d}
+            for law, pts in points.items() for setting, a, d in pts]
+
+
+def test_refinement_asks_for_the_lambda_between_the_runs_that_bracket_a_beaten_point():
+    # predictive: lambda 0.01 flies a_rms 1.2, lambda 1 flies 1.0; the chord at 1.05 is 0.55 - npfg's
+    # (1.05, 0.5) lies below it. a_rms 1.05 is a quarter of the way from 1.0 to 1.2, i.e. 3/4 of the
+    # way from lambda 0.01 to 1 in log lambda (within the middle half): 10^(-2 + 0.75 * 2) = 0.3162.
+    rows = _rows({"predictive": [(0.01, 1.2, 0.3), (1.0, 1.0, 0.7)], "npfg": [(3.0, 1.05, 0.5)]})
+    assert refinement_settings(rows) == {("s", "lag"): [0.3162]}
+    # Nearer one end than the middle half allows: clamped to a quarter of the bracket (bisection-like).
+    rows = _rows({"predictive": [(0.01, 1.2, 0.3), (1.0, 1.0, 0.7)], "npfg": [(3.0, 1.01, 0.6)]})
+    assert refinement_settings(rows) == {("s", "lag"): [float(f"{10 ** (-2 + 0.75 * 2):.4g}")]}
+    rows = _rows({"predictive": [(0.01, 1.2, 0.3), (1.0, 1.0, 0.7)], "npfg": [(3.0, 1.19, 0.25)]})
+    assert refinement_settings(rows) == {("s", "lag"): [float(f"{10 ** (-2 + 0.25 * 2):.4g}")]}
+
+
+def test_refinement_extends_the_front_past_its_smallest_lambda_down_to_a_floor():
+    # npfg spends more than predictive's tightest setting and tracks tighter: try a third of it.
+    rows = _rows({"predictive": [(0.003, 1.2, 0.3), (0.3, 1.0, 0.7)], "npfg": [(2.0, 1.3, 0.2)]})
+    assert refinement_settings(rows) == {("s", "lag"): [0.001]}
+    rows = _rows({"predictive": [(REFINE_LAMBDA_FLOOR_S4 * 2, 1.2, 0.3), (0.3, 1.0, 0.7)],
+                  "npfg": [(2.0, 1.3, 0.2)]})
+    assert refinement_settings(rows) == {}  # a third would be below the floor
+
+
+def test_refinement_asks_nothing_already_flown_nor_where_no_point_is_below():
+    rows = _rows({"predictive": [(0.01, 1.2, 0.3), (0.3162, 1.05, 0.52), (1.0, 1.0, 0.7)],
+                  "npfg": [(3.0, 1.05, 0.5)]})
+    # (1.05, 0.5) is still below (0.52), but its lambda has been flown: the next one brackets closer.
+    (lams,) = refinement_settings(rows).values()
+    assert lams and all(0.3162 < lam < 1.0 or 0.01 < lam < 0.3162 for lam in lams) and 0.3162 not in lams
+    rows = _rows({"predictive": [(0.01, 1.2, 0.3), (1.0, 1.0, 0.7)], "npfg": [(3.0, 1.05, 0.6)]})
+    assert refinement_settings(rows) == {}
 
 
 def test_crosstrack_is_measured_from_the_trajectory_with_sign():
@@ -79,3 +117,22 @@ def test_unknown_scenario_is_a_one_line_error(capsys):
     assert main(["bench", "tracking", "--scenario", "moon"]) == 2
     err = capsys.readouterr().err
     assert "unknown 'moon'" in err and "Traceback" not in err
+
+
+def test_refine_flies_predictive_at_the_contested_accelerations(capsys, tmp_path):
+    # random_1003 (an open self-crossing path started at its crossing, 9 m/s, wind): in the short
+    # sweep npfg's period-3 point lies below predictive's two-point front.
+    args = ["bench", "tracking", "--random", "1", "--seed", "1003", "--model", "lag", "--quick", "--jobs", "1",
+            "--law", "npfg", "--law", "predictive", "--json"]
+    assert main(args) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert plain["summary"][0]["predictive_beaten_at"] and plain["refined_runs"] == 0
+    out = tmp_path / "rows.jsonl"
+    assert main(args + ["--refine", "2", "--out", str(out)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    lams = sorted(r["setting"] for r in doc["rows"] if r["law"] == "predictive")
+    assert doc["refined_runs"] == len(lams) - 2 >= 1
+    assert len(out.read_text().splitlines()) == len(doc["rows"])  # the refinement's rows are streamed too
+    # every refined lambda was asked for by a point below the front of the runs before it
+    assert all(REFINE_LAMBDA_FLOOR_S4 <= lam <= 0.3 for lam in lams)
+    assert main(["bench", "tracking", "--refine", "-1"]) == 2
