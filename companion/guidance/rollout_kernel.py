@@ -3,149 +3,46 @@
 :meth:`companion.guidance.predictive.PredictiveGuidance.rollout` flies a few dozen candidate rows
 through 25 steps of the pursuit and the vehicle model. In numpy each step is some ninety calls on
 arrays of a few dozen numbers, and the interpreter's cost per call is most of a re-optimisation's
-2-5 ms. Here the same arithmetic runs as scalar loops compiled by numba: the same operations on
-the same numbers in the same order as the numpy code (each block names the numpy function it
-stands for), so the results agree with it to rounding (the transcendental functions may differ in
-the last bit), which the tests check (``tests/guidance/test_rollout_kernel.py``).
+2-5 ms. :mod:`companion.guidance._rollout_numba` runs the same arithmetic as scalar loops
+compiled by numba, so the results agree with the numpy rollouts to rounding (the transcendental
+functions may differ in the last bit), which the tests check
+(``tests/guidance/test_rollout_kernel.py``).
 
-Optional: ``pip install 'companion[fast]'``. Without numba :data:`rollout` is None and the law
-flies its numpy rollouts (as it does with ``PredictiveGuidance.compiled = False``). Compiled once
-per machine (cached beside this file by numba; a few seconds the first time) and loaded in a
-fraction of a second after that; :func:`warm_up` does it before a flight's first tick.
+Optional: ``pip install 'companion[fast]'``. :func:`load` imports numba on the first
+``predictive`` law a process builds (never for the other laws: numba and its LLVM take about
+100 MB of memory), compiles the loops or loads them from numba's cache beside the module (a few
+seconds once per machine, a fraction of a second after that), before the flight's first tick.
+Without numba it returns None and the law flies its numpy rollouts (as it does with
+``PredictiveGuidance.compiled = False``).
 
 Pure arithmetic on arrays, SI units, ENU: no I/O, no clocks.
 """
 
 from __future__ import annotations
 
-import math
-from typing import Any, Callable
+import importlib.util
+from typing import Callable
 
 import numpy as np
 
-njit: Callable[..., Any] | None
-try:  # pragma: no cover - which branch runs depends on the install
-    from numba import njit
-except ImportError:  # pragma: no cover
-    njit = None
+#: True when numba is installed (checked without importing it).
+AVAILABLE = importlib.util.find_spec("numba") is not None
 
-#: True when the compiled rollouts are available.
-AVAILABLE = njit is not None
+Rollout = Callable[..., np.ndarray]
+_loaded: list[Rollout | None] = []  # empty until load() has run once
 
 
-def _compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """``fn`` compiled (and cached on disk) when numba is installed, else ``fn`` itself."""
-    return njit(cache=True)(fn) if njit is not None else fn
+def load() -> Rollout | None:
+    """The compiled rollouts (compiled, or read from the cache, and run once on a tiny problem
+    on the first call), or None without numba."""
+    if not _loaded:
+        rollout: Rollout | None = None
+        if AVAILABLE:
+            from companion.guidance._rollout_numba import _rollout
 
-
-@_compiled
-def _nearest(wx: np.ndarray, wy: np.ndarray, x: float, y: float, lo_j: int, hi_j: int, r2: np.ndarray) -> int:
-    """``_project``'s search: fills ``r2`` with the squared distance to every window sample and
-    returns the first nearest one among the samples ``lo_j .. hi_j`` (the band)."""
-    best = math.inf
-    i0 = lo_j
-    for j in range(wx.shape[0]):
-        dx = wx[j] - x
-        dy = wy[j] - y
-        r2[j] = dx * dx + dy * dy
-        if lo_j <= j <= hi_j and r2[j] < best:
-            best = r2[j]
-            i0 = j
-    return i0
-
-
-@_compiled
-def _pursue(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk: np.ndarray, spacing: float,
-            x: float, y: float, course: float, v: float, look: float, cff: float, lead: float, i0: int,
-            r2: np.ndarray) -> tuple[float, float]:
-    """``_project`` from the nearest sample ``i0`` on, and ``_pursue``: the command and the
-    cross-track error of one row."""
-    n = wx.shape[0]
-    ex = x - wx[i0]
-    ey = y - wy[i0]
-    tx, ty = wtx[i0], wty[i0]
-    along = tx * ex + ty * ey
-    along_c = min(max(along, -spacing), spacing)
-    d = tx * ey - ty * ex - 0.5 * wk[i0] * along_c * along_c
-    # the goal: the first sample from i0 on at L_eff or more, interpolated from the one before
-    l_eff = max(look, math.sqrt(2.0) * abs(d))
-    jg = -1
-    for j in range(i0, n):
-        if math.sqrt(r2[j]) >= l_eff:
-            jg = j
-            break
-    frac = 1.0
-    if jg > i0:
-        r_j, r_jm = math.sqrt(r2[jg]), math.sqrt(r2[jg - 1])
-        frac = (l_eff - r_jm) / max(r_j - r_jm, 1e-12)
-    idx = jg if jg >= 0 else n - 1
-    b = max(idx - 1, 0)
-    goal_x = wx[b] + frac * (wx[idx] - wx[b])
-    goal_y = wy[b] + frac * (wy[idx] - wy[b])
-    tgx, tgy = goal_x - x, goal_y - y
-    eta = (math.atan2(tgy, tgx) - course + math.pi) % (2.0 * math.pi) - math.pi
-    vv = v * v
-    w2 = vv * 2.0
-    a = w2 * math.sin(eta) / max(math.hypot(tgx, tgy), 1e-6)
-    if cff != 0.0:  # the curvature feed-forward at the closest point, read lead seconds ahead
-        cx = goal_x - (wx[i0] + along * tx)
-        cy = goal_y - (wy[i0] + along * ty)
-        pos = min(max(i0 + (along + v * lead) / spacing, 0.0), n - 1.0)
-        lo = min(int(pos), n - 2) if n > 1 else 0
-        kappa = wk[lo] + (pos - lo) * (wk[min(lo + 1, n - 1)] - wk[lo])
-        length = max(math.hypot(cx, cy), 1e-6)
-        sin_eta_p = (tx * cy - ty * cx) / length
-        a = a - cff * (w2 * sin_eta_p / length - vv * kappa)
-    return a, d
-
-
-def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk: np.ndarray, spacing: float,
-             x0: float, y0: float, h0: float, a0: float, look: np.ndarray, step_plans: np.ndarray, speed: float,
-             wind_x: float, wind_y: float, alpha: float, dt: float, cff: float, lead: float, limit: float,
-             centre0: int, back: int, ahead: int, whole: bool, d_ref: np.ndarray, w_d: float, w_u: float,
-             min_speed: float) -> np.ndarray:
-    """Residuals ``(rows, 2 * steps)`` of the rollouts; the arguments as
-    :meth:`PredictiveGuidance.rollout` has them (window samples ``wx .. wk``; the band
-    ``centre0, back, ahead, whole`` of :class:`companion.guidance.predictive._Band`)."""
-    rows, steps, n = look.shape[0], step_plans.shape[0], wx.shape[0]
-    res = np.empty((rows, 2 * steps))
-    r2 = np.empty(n)
-    windy = wind_x != 0.0 or wind_y != 0.0
-    for row in range(rows):
-        x, y, h, a_act, centre = x0, y0, h0, a0, centre0
-        for step in range(steps):
-            gx, gy = speed * math.cos(h), speed * math.sin(h)  # the ground velocity
-            if windy:
-                gx, gy = gx + wind_x, gy + wind_y
-            lo_j, hi_j = (0, n - 1) if whole else (max(centre - back, 0), min(centre + ahead, n - 1))
-            centre = _nearest(wx, wy, x, y, lo_j, hi_j, r2)
-            a, d = _pursue(wx, wy, wtx, wty, wk, spacing, x, y, math.atan2(gy, gx),
-                           max(math.hypot(gx, gy), min_speed), look[row], cff, lead, centre, r2)
-            u = a + step_plans[step, row]
-            if limit < math.inf:
-                u = min(max(u, -limit), limit)
-            res[row, 2 * step] = (d - d_ref[step]) * w_d
-            res[row, 2 * step + 1] = u * w_u
-            # the lag, the turn, the position from the midpoint heading
-            a_act = a_act + (u - a_act) * alpha
-            dh = a_act / speed * dt
-            mid = h + 0.5 * dh
-            mx, my = speed * math.cos(mid), speed * math.sin(mid)
-            if windy:
-                mx, my = mx + wind_x, my + wind_y
-            x, y, h = x + mx * dt, y + my * dt, h + dh
-    return res
-
-
-#: The compiled rollouts, or None without numba.
-rollout: Callable[..., np.ndarray] | None = _compiled(_rollout) if njit is not None else None
-
-
-def warm_up() -> None:
-    """Compile (or load from the cache) before a flight's first tick; nothing without numba."""
-    if rollout is None:
-        return
-    s = np.arange(5.0)
-    z = np.zeros(5)
-    rollout(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0.0, 0.0, np.array([3.0]), np.zeros((2, 1)), 5.0, 0.0, 0.0,
-            0.5, 0.2, 1.0, 0.3, 5.0, 2, 3, 5, False, np.zeros(2), 0.4, 0.1, 0.1)
+            s, z = np.arange(5.0), np.zeros(5)
+            rollout = _rollout
+            _rollout(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0.0, 0.0, np.array([3.0]), np.zeros((2, 1)), 5.0, 0.0,
+                    0.0, 0.5, 0.2, 1.0, 0.3, 5.0, 2, 3, 5, False, np.zeros(2), 0.4, 0.1, 0.1)
+        _loaded.append(rollout)
+    return _loaded[0]
