@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
+import resource
+import sys
 
-from companion.bench.perf import _check, _stats_us
+import pytest
+
+from companion.bench.perf import _check, _proc_peak_rss_mb, _stats_us
 from companion.cli.main import main
 
 
@@ -51,3 +56,11 @@ def test_predictive_targets_are_the_documented_ones():
     assert _check("predictive_tick_mean_ms", 0.31) == "FAIL"
     assert _check("predictive_reopt_p99_ms", 5.01) == "FAIL"
     assert _check("loop_latency_p99_ms_50hz_predictive", 2.0) == "pass"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="VmHWM is read from Linux's /proc")
+def test_peak_rss_of_a_process_since_its_exec():
+    # ru_maxrss of this process (not a forked child) is its own peak: the same number.
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    assert _proc_peak_rss_mb(os.getpid()) == pytest.approx(own, rel=0.05)
+    assert _proc_peak_rss_mb(2**22 + 12345) is None  # no such process
