@@ -34,15 +34,15 @@ _loaded: list[Rollout | None] = []  # empty until load() has run once
 
 def load() -> Rollout | None:
     """The compiled rollouts (compiled, or read from the cache, and run once on a tiny problem
-    on the first call), or None without numba."""
+    on the first call), or None without numba (or with one that cannot be imported)."""
     if not _loaded:
-        rollout: Rollout | None = None
-        if AVAILABLE:
+        try:
             from companion.guidance._rollout_numba import _rollout
-
+        except ImportError:
+            _loaded.append(None)
+        else:
             s, z = np.arange(5.0), np.zeros(5)
-            rollout = _rollout
             _rollout(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0.0, 0.0, np.array([3.0]), np.zeros((2, 1)), 5.0, 0.0,
-                    0.0, 0.5, 0.2, 1.0, 0.3, 5.0, 2, 3, 5, False, np.zeros(2), 0.4, 0.1, 0.1)
-        _loaded.append(rollout)
+                     0.0, 0.5, 0.2, 1.0, 0.3, 5.0, 2, 3, 5, False, np.zeros(2), 0.4, 0.1, 0.1)
+            _loaded.append(_rollout)
     return _loaded[0]
