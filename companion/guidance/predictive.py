@@ -63,8 +63,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.guidance import rollout_kernel
-from companion.guidance.capture import SIDE_EPS, capture_command_m_s2, capture_side
-from companion.guidance.path_frame import PathFrame, PathLike, frame_output, path_frame
+from companion.guidance.capture import capture_command_m_s2, capture_side
+from companion.guidance.path_frame import PathLike, frame_output, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)
@@ -449,36 +449,6 @@ def _pursue(win: _Window, xy: np.ndarray, course_rad: np.ndarray, speed_m_s: np.
 CAPTURE_SIDE_MIN_OFFSET_M = 1.0
 
 
-def turn_round_side(state: VehicleState, f: PathFrame, towards: int, look_m: float, a_max_m_s2: float) -> int:
-    """The side of a new turn round off the path of a law with look-ahead ``look_m`` and limit
-    ``a_max_m_s2`` (its turn: ``min(a_max, 2 V^2 / L)``): ``towards`` (the closest point's side,
-    else the goal's), unless that turn, held at its bound, would meet the path before it has
-    brought the vehicle round to the path's direction; then the other way, towards the path's
-    direction, so that the vehicle comes round beside the path going its way and the plan
-    brings it in from there.
-
-    Against the path's direction (the velocity's angle phi from the tangent at the closest
-    point with cos(phi) < 0), the turn towards the path is a circle of radius
-    ``R = V^2 / a`` whose centre lies ``R |cos(phi)|`` nearer the path than the vehicle: it
-    reaches the path (locally its tangent line) when ``|d| < R (1 + |cos(phi)|)``, going
-    across it, still turning at the limit. Turned that way a vehicle 10.5 m off, pointing
-    away at 8.3 m/s and 5 m/s^2 (``random_1041`` of the held-out bench), crossed the path by
-    4 m. Going the path's way (``cos(phi) >= 0``) both sides are the same turn.
-    """
-    v = max(state.speed_m_s, MIN_SPEED_M_S)
-    cos_phi = math.cos(state.course_rad) * f.tx + math.sin(state.course_rad) * f.ty
-    if cos_phi >= 0.0:
-        return towards
-    a_turn = min(abs(capture_command_m_s2(1, v, look_m)), a_max_m_s2)
-    radius = v * v / a_turn
-    if abs(f.crosstrack_m) >= radius * (1.0 - cos_phi):
-        return towards  # the turn comes round before it reaches the path
-    sin_tangent = math.cos(state.course_rad) * f.ty - math.sin(state.course_rad) * f.tx
-    if abs(sin_tangent) < SIDE_EPS:
-        return towards
-    return 1 if sin_tangent > 0.0 else -1
-
-
 # Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
 MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 MONITOR_LAG_FLOOR_S = 0.2  # the candidates of a nominal lag of 0 (ideal: unknown) are multiples of this
@@ -841,8 +811,12 @@ class PredictiveGuidance:
         # is pointing away; turn round towards it at the law's bound instead of planning.
         behind = capture_side(state.x_m, state.y_m, state.course_rad, float(gx[0]), float(gy[0]),
                               f.tx, f.ty, self._capture_side)
-        if behind:
+        if behind and not self._capture_side:
             off_path = abs(f.crosstrack_m) > CAPTURE_SIDE_MIN_OFFSET_M
+            # A new capture off the path: turn towards the closest point if that is behind too.
+            # On the path the goal decides: the closest point's side is there the sign of an error
+            # of centimetres (of noise, on a real vehicle), and following it turned a vehicle
+            # started on the path facing across it the long way round.
             p_behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty,
                                     0) if off_path else 0
             going_its_way = math.cos(state.course_rad) * f.tx + math.sin(state.course_rad) * f.ty >= 0.0
@@ -850,12 +824,9 @@ class PredictiveGuidance:
                 # Not pointing away: the path ahead bends back within the look-ahead distance (a
                 # tight loop, a hairpin), and the pursuit with its plan follows it; a turn round
                 # here left a loop of a self-crossing path on the held-out bench (random_1119).
-                # A turn round ends here too, once it has brought the vehicle round to go the
-                # path's way with the path ahead of its beam: the plan, with its capture
-                # reference, flattens the approach out from there.
                 behind = 0
-            elif off_path and not self._capture_side:
-                behind = turn_round_side(state, f, p_behind or behind, self._look_m, self._a_max)
+            elif p_behind:
+                behind = p_behind
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
         if self._capture_side:

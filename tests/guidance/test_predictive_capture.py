@@ -136,19 +136,12 @@ def test_pointing_away_the_law_turns_round_and_joins_the_path(lambda_s4):
     # Behind the beam the pursuit's goal gives a small command (sin(eta) near 0 at eta near 180
     # deg) and a 5 s plan cannot see the end of a turn round, so without the capture turn the
     # vehicle flew straight away at lambda 0.03 (2.3 km off after 240 s). With it, it turns at
-    # the limit (radius R = V^2 / a_max = 21.5 m) and returns. It points against the line's
-    # direction (124 deg from it), and the turn towards the line would reach it across, still
-    # turning (25.3 m < R (1 + |cos 124 deg|) = 33.5 m): it turns the other way, towards the
-    # line's direction, and comes round beside the line going its way. That swings wider: at
-    # most the start distance plus the capture's bound 2 V T (T the 5 s horizon: the law's
-    # look-ahead reach, docs/guidance.md), on the line within 1 m by 25 s. (Turned the short
-    # way, as before the rule, it was within 1 m after 10 s and did not cross: the rule is
-    # conservative here, where the turn round ends before the circle meets the line.)
+    # the limit (radius V^2 / a_max = 21.5 m) and returns: at most the start distance plus the
+    # turn's diameter (plus the lag's V tau), and on the path within 1 m by 20 s.
     res, d, v = _away_from_a_line(lambda_s4)
     assert d[0] == pytest.approx(25.3, abs=1e-6)
-    assert np.max(d) <= 25.3 + 2.0 * v * 5.0
-    assert np.min(d[res.t_s <= 25.0]) < 1.0
-    assert np.max(d[res.t_s >= 30.0]) < 0.1
+    assert np.max(d) <= 25.3 + 2.0 * v * v / 5.0 + v * 0.222
+    assert np.min(d[res.t_s <= 20.0]) < 1.0
     assert np.max(np.abs(res.a_cmd_m_s2)) <= 5.0 + 1e-9
     # The turn round is at the limit, on one side, and costs no re-optimisation after the first
     # tick's (which found it).
@@ -174,50 +167,3 @@ def test_started_on_the_path_facing_across_it_the_law_turns_the_short_way(offset
     # = 11.2 m beside the line, plus V tau = 1.5 m of lag; the long way round would be 2 r = 20 m
     assert np.max(np.abs(res.y_m)) < 11.2 + 1.5 + 0.5
     assert abs(res.y_m[-1]) < 0.5
-
-
-@pytest.mark.parametrize("heading_deg", [-110.0, -150.0])
-def test_pointing_away_and_against_the_path_the_turn_goes_round_to_the_paths_way(heading_deg):
-    # 10.5 m right of a line going east, pointing away from it and against its direction, at
-    # 8.3 m/s with a 0.33 s lag and 5 m/s^2 (the held-out bench's random_1041, reduced to a line).
-    # Turned towards the closest point, the vehicle met the line across, still turning at the
-    # limit (radius V^2 / a_max = 13.8 m), and crossed it by 5.6 m (-110 deg) and 14.1 m
-    # (-150 deg). Turned towards the line's direction (left, here), it comes round to go east
-    # beside the line and the plan brings it in: it crosses by less than a metre, at the price
-    # of a wider turn out (still within the capture bound d0 + 2 L, L = V times the horizon).
-    path = LinePath(x0=-200.0, length_m=800.0)
-    v = 8.3
-    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.33, a_max_m_s2=5.0))
-    res = simulate(path, law, VehicleState(0.0, -10.5, math.radians(heading_deg), v), GuidanceParams(speed_m_s=v),
-                   model=LagModel(0.33, 5.0), t_max_s=25.0, keep_outputs=True)
-    sides = [o.extra["capture_side"] for o in res.outputs if o.extra["capture_side"]]
-    assert sides and set(sides) == {1}  # left: towards the line's direction, and kept
-    d = res.y_m
-    assert np.max(d) < 1.0
-    assert -np.min(d) <= 10.5 + 2.0 * v * 5.0
-    assert np.max(np.abs(d[-100:])) < 0.05  # on the line, going its way
-    assert res.x_m[-1] > res.x_m[-200]
-
-
-def test_turn_round_side_by_hand():
-    from companion.guidance.path_frame import PathFrame
-    from companion.guidance.predictive import turn_round_side
-
-    # A line going east; the vehicle 10 m to its right at 10 m/s, look-ahead 10 m: the turn is
-    # min(5, 2 * 100 / 10) = 5 m/s^2, radius R = 20 m.
-    def side(d_m: float, course_deg: float, towards: int) -> int:
-        f = PathFrame(0.0, 0.0, 0.0, 1.0, 0.0, 0.0, d_m)
-        return turn_round_side(VehicleState(0.0, d_m, math.radians(course_deg), 10.0), f, towards, 10.0, 5.0)
-
-    # -120 deg: against the line, 1 - cos(phi) = 1.5, the circle reaches 20 * 1.5 = 30 m > 10 m:
-    # turn towards the line's direction, left (+1), whatever side the closest point lies on.
-    assert side(-10.0, -120.0, -1) == 1
-    # 40 m off: the turn towards the line comes round before it (40 >= 30): towards stands.
-    assert side(-40.0, -120.0, -1) == -1
-    # going the line's way (cos(phi) >= 0): one turn, towards stands
-    assert side(-10.0, -60.0, 1) == 1 and side(-10.0, -90.0, 1) == 1
-    # exactly against the line (no side to the line's direction): towards stands
-    assert side(-10.0, 180.0, -1) == -1
-    # 25 m off with a limit of 2.5 m/s^2 (R = 40 m): 25 < 40 (1 - cos 150 deg) = 74.6 m
-    f = PathFrame(0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -25.0)
-    assert turn_round_side(VehicleState(0.0, -25.0, math.radians(-150.0), 10.0), f, -1, 10.0, 2.5) == 1
