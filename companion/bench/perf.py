@@ -17,7 +17,8 @@ loop latency p99, 50 Hz        LOCAL_POSITION_NED datagram readable -> its      
                                ``compute_tick`` on the mission's guidance
 CPU, 50 Hz                     ``companion fly`` against sitl_mock: CPU time    <= 10 % of a core
                                over wall time, from /proc, flight loop only
-peak RSS                       the same process's ``ru_maxrss``                 <= 120 MB
+peak RSS                       the same process's ``VmHWM`` (/proc, since its   <= 120 MB
+                               ``exec``; ``ru_maxrss`` without /proc)
 replay throughput              a synthetic one-hour 50 Hz flight log            >= 60,000 msg/s
                                (``companion.replay.synthetic``), read and
                                replayed; messages / (read + replay time)
@@ -210,6 +211,7 @@ def _mission_file(names: tuple[str, ...] = ("paper_sine.yaml", "racetrack.yaml")
         if p.exists():
             return p
     raise CompanionError(f"bench perf: no mission file in {MISSIONS_DIR} (expected {names[0]})")
+
 
 #: The mission of the predictive law's loop latency (the rest of the bench flies the paper sine).
 PREDICTIVE_MISSION = ("racetrack_predictive.yaml",)
