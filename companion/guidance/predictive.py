@@ -306,15 +306,17 @@ class _Band:
         self._win = win
         self.back, self.ahead = back, ahead  # in samples
         self._penalty: np.ndarray | None = None
-        if not self.whole and self.centre.size > 1 and n <= 600:
-            # The rollouts search every step: one table row per centre, 0 inside the band, inf outside.
-            offset = win.index[None, :] - win.index[:, None]
-            self._penalty = np.where((offset >= -back) & (offset <= ahead), 0.0, np.inf)
+        # The numpy rollouts search every step: a table, one row per centre, 0 inside the band and
+        # inf outside, made on their first search (the compiled rollouts never search here).
+        self._tabled = not self.whole and self.centre.size > 1 and n <= 600
 
     def nearest(self, r2: np.ndarray) -> np.ndarray:
         """The nearest sample of each row within its band; the band moves there."""
         if not self.whole:
-            if self._penalty is not None:
+            if self._tabled:
+                if self._penalty is None:
+                    offset = self._win.index[None, :] - self._win.index[:, None]
+                    self._penalty = np.where((offset >= -self.back) & (offset <= self.ahead), 0.0, np.inf)
                 r2 = r2 + self._penalty.take(self.centre, axis=0)
             else:
                 offset = self._win.index - self.centre[:, None]
