@@ -623,18 +623,8 @@ class PredictiveGuidance:
         assert win is not None  # set by reoptimise() before any rollout
         k = look_m.size
         heading, v_air = self._air(state)
-        h = np.full(k, heading)
-        xy = np.empty((2, k))  # x and y in rows, as the pursuit takes them
-        xy[0], xy[1] = state.x_m, state.y_m
-        a_act = np.full(k, self._a_hat)
         step_plans = plans.T[self._seg_of_step]  # every row's correction at every step
         cff, lead, limit = p.curvature_ff, self._lag_s, self._a_max
-        dt = _const(p.rollout_dt_s)
-        alpha, speed, half = _const(self._alpha(p.rollout_dt_s)), _const(v_air), _const(0.5)
-        # The ground velocity is the air velocity plus the wind; adding a zero wind would change
-        # nothing (V cos(h) is never -0.0), so it is skipped.
-        wind = np.array([[p.wind_x_m_s], [p.wind_y_m_s]]) if p.wind_x_m_s or p.wind_y_m_s else None
-        trig = np.empty((2, k))
         band = _band(win, np.full(k, win.index_of(self._s_win)), v_air, p.rollout_dt_s, self._d_win)
         if self._kernel is not None and self.compiled:
             return self._kernel(
@@ -645,6 +635,16 @@ class PredictiveGuidance:
                 int(band.centre[0]), band.back, band.ahead, band.whole,
                 np.zeros(self._steps) if d_ref_m is None else np.ascontiguousarray(d_ref_m, dtype=float),
                 math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S)
+        h = np.full(k, heading)
+        xy = np.empty((2, k))  # x and y in rows, as the pursuit takes them
+        xy[0], xy[1] = state.x_m, state.y_m
+        a_act = np.full(k, self._a_hat)
+        dt = _const(p.rollout_dt_s)
+        alpha, speed, half = _const(self._alpha(p.rollout_dt_s)), _const(v_air), _const(0.5)
+        # The ground velocity is the air velocity plus the wind; adding a zero wind would change
+        # nothing (V cos(h) is never -0.0), so it is skipped.
+        wind = np.array([[p.wind_x_m_s], [p.wind_y_m_s]]) if p.wind_x_m_s or p.wind_y_m_s else None
+        trig = np.empty((2, k))
         ds, us = [], []
         for n in range(self._steps):
             np.cos(h, out=trig[0])
