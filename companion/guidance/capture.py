@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import math
 
+from companion.geometry.paths import Path
+
 #: |sin| below which a direction counts as dead ahead or astern when choosing the side.
 SIDE_EPS = 1e-3
 
@@ -76,3 +78,33 @@ def capture_side(x_m: float, y_m: float, course_rad: float, px_m: float, py_m: f
 def capture_command_m_s2(side: int, speed_m_s: float, reach_m: float) -> float:
     """The bounded turn ``side * 2 V^2 / L`` (``L = reach_m``, the law's look-ahead distance)."""
     return side * 2.0 * speed_m_s * speed_m_s / reach_m
+
+
+def start_course_rad(path: Path, x_m: float, y_m: float, l1_m: float) -> float:
+    """The course a hovering copter should face before its path starts (local ENU, radians).
+
+    A copter at rest has no course: its velocity loop flies any direction it is given. Started on
+    whatever way its nose points, a law sees a vehicle already moving that way at the mission speed
+    and commands a turn it does not need (a copter facing north on a path going east swings out by
+    metres). Faced this way instead, every law starts with nothing to correct: the direction of
+    Park's L1 point (the path's first exit from the circle of radius ``l1_m`` past the closest
+    point, :meth:`~companion.geometry.paths.Path.lookahead`), or, farther than ``l1_m`` from the
+    path (no such point), of the closest point itself. On the path that is the chord ``l1_m`` ahead.
+
+    Examples
+    --------
+    >>> from companion.geometry.paths import waypoint_path
+    >>> line = waypoint_path([[0.0, 0.0], [100.0, 0.0]])  # going east
+    >>> round(math.degrees(start_course_rad(line, 10.0, 0.0, 10.0)), 6)  # on it: along it
+    0.0
+    >>> round(math.degrees(start_course_rad(line, 10.0, 6.0, 10.0)), 3)  # 6 m left: the L1 point 8 m ahead
+    -36.87
+    >>> round(math.degrees(start_course_rad(line, 10.0, 30.0, 10.0)), 6)  # beyond L1: straight at it
+    -90.0
+    """
+    s = path.project(x_m, y_m)
+    s_l1 = path.lookahead(x_m, y_m, l1_m, s)
+    px, py = path.point(s if s_l1 is None else s_l1)
+    if math.hypot(px - x_m, py - y_m) < 1e-6:  # on the path's end point: its direction
+        return path.heading_rad(s)
+    return math.atan2(py - y_m, px - x_m)

@@ -15,7 +15,10 @@ Phases
 
     - ``"auto"`` (default): the vehicle is at least ``2 R`` from the path start, R the
       initiation circle radius (``params.circle_radius_m``). This is the paper's distance test
-      with the circle actually flown in place of R0; it fires on straight starts too.
+      with the circle actually flown in place of R0; it fires on straight starts too. A closed
+      path has no start to fly to (its ``s = 0`` is where its description begins), so there
+      the distance is to the closest path point: a vehicle within ``2 R`` of a closed path joins
+      it where it is (our choice, docs/guidance.md).
     - ``"paper"``: at least ``2 R0`` away, R0 the radius of curvature of the path at its start
       (on a nearly straight start R0 is huge and this never fires).
     - ``"off"``: never.
@@ -125,6 +128,9 @@ class TwoPhaseGuidance:
         if p.midcourse_trigger == "paper":
             r0 = self.path.radius_of_curvature_m(0.0)
             return dist >= 2.0 * r0
+        if self.path.closed:
+            cx, cy = self.path.point(self.path.project(state.x_m, state.y_m))
+            dist = math.hypot(state.x_m - cx, state.y_m - cy)
         return dist >= 2.0 * p.circle_radius_m
 
     def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:

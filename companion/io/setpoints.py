@@ -239,6 +239,27 @@ def position_hold_setpoint(north_m: float, east_m: float, anchor_north_m: float,
     return replace(plain, vx_ned_m_s=vn, vy_ned_m_s=ve)
 
 
+FACE_GAIN_1_S = 1.5  # turning to face a course: yaw rate per radian of yaw error
+FACE_MAX_RATE_RAD_S = math.radians(45.0)  # and at most this (PX4's MPC_YAWRAUTO_MAX default)
+
+
+def facing_yaw_rate_ned_rad_s(yaw_ned_rad: float, course_enu_rad: float, gain_1_s: float = FACE_GAIN_1_S,
+                              max_rate_rad_s: float = FACE_MAX_RATE_RAD_S) -> float:
+    """Yaw rate (NED, positive clockwise) that turns a nose at ``yaw_ned_rad`` to face the ENU
+    course ``course_enu_rad`` the short way: ``gain`` times the error, at most ``max_rate_rad_s``;
+    0 for a non-finite yaw.
+
+    >>> round(facing_yaw_rate_ned_rad_s(0.0, 0.0), 6)  # nose north, to face east: clockwise, capped
+    0.785398
+    >>> round(facing_yaw_rate_ned_rad_s(math.radians(80.0), 0.0), 6)  # 10 deg short of east
+    0.261799
+    """
+    if not (math.isfinite(yaw_ned_rad) and math.isfinite(course_enu_rad)):
+        return 0.0
+    err = frames.angle_diff_rad(frames.yaw_ned_from_enu(course_enu_rad), yaw_ned_rad)
+    return max(-max_rate_rad_s, min(max_rate_rad_s, gain_1_s * err))
+
+
 def bank_angle_rad(a_cmd_m_s2: float, max_bank_deg: float) -> float:
     """Coordinated-turn bank ``atan(a / g)`` (ENU sense: left turn positive), limited."""
     limit = math.radians(max_bank_deg)

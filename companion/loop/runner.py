@@ -44,6 +44,7 @@ import numpy as np
 
 from companion.errors import CompanionError, FlightAborted, LinkError
 from companion.geometry import frames
+from companion.guidance.capture import start_course_rad
 from companion.guidance.types import GuidanceLaw
 from companion.io.link import (
     MAV_CMD_SET_MESSAGE_INTERVAL,
@@ -325,11 +326,23 @@ class FlightRunner:
     def _enter(self, s: LinkSession, profile: AutopilotProfile, config: TickConfig, clock: Clock) -> None:
         """Step 6: the flight mode, arming and the climb; from here on the setpoints must not pause."""
         profile.enter(config, clock, self.mission.altitude_m)
+        self._face_the_path(s, config, profile.target_mode)
         if config.output == "attitude":
             s.link.change_speed(self.mission.speed_m_s, wait_ack_s=1.0, retries=2, idle=s.idle)
         s.keepalive_config = None
         s.event(f"flying {self.mission.name} at {self.opt.rate_hz:g} Hz "
                 f"({config.output} setpoints, {self.opt.clock} clock)")
+
+    def _face_the_path(self, s: LinkSession, config: TickConfig, mode: str) -> None:
+        """A copter hovering (slower than the course speed) turns to face the course it starts on
+        (:func:`companion.guidance.capture.start_course_rad`): a velocity loop flies any direction,
+        but every law reads a hovering copter's course from its nose (docs/flying.md)."""
+        p = s.link.state.position
+        if (s.link.info.vehicle != "copter" or config.output != "velocity" or p is None
+                or math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) >= config.min_course_speed_m_s):
+            return
+        x, y, _ = frames.enu_from_ned(p.x_ned_m, p.y_ned_m, p.z_ned_m)
+        s.face(start_course_rad(self.mission.path, x, y, self.mission.guidance.l1_m), config, mode)
 
     # ------------------------------------------------------------------ entry point
 

@@ -17,17 +17,22 @@ import logging
 import math
 import sys
 import time
+from dataclasses import replace
 from typing import TYPE_CHECKING, TextIO
 
 from companion.errors import FlightAborted, LinkError
-from companion.io.link import MAV_RESULT_NAMES, MAV_SEVERITY_INFO, MavLink
-from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
+from companion.io.link import MAV_RESULT_NAMES, MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING, MavLink
+from companion.geometry import frames
+from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint, facing_yaw_rate_ned_rad_s
 from companion.loop.tick import TickConfig, course_from_sample, hold_for
 
 if TYPE_CHECKING:
     from companion.loop.runner import FlyOptions
 
 log = logging.getLogger("companion")
+
+FACE_TOLERANCE_RAD = math.radians(5.0)  # facing the start course: done within this of it
+FACE_TIMEOUT_S = 10.0  # and the path starts anyway after this long (wall clock)
 
 
 class Status:
@@ -155,10 +160,10 @@ class LinkSession:
         new = self.link.state.statustext_count - n0
         return [t for _, t in self.link.state.statustext[-new:]] if new > 0 else []
 
-    def hold_now(self, config: TickConfig) -> None:
-        """Send one hold setpoint for the pre-stream and the climb: altitude held and, on a copter
-        with a fresh sample, the horizontal position of the first fresh sample (else zero
-        velocity)."""
+    def hold_now(self, config: TickConfig, yaw_rate_ned_rad_s: float = 0.0) -> None:
+        """Send one hold setpoint for the pre-stream, the climb and the turn to face the path:
+        altitude held and, on a copter with a fresh sample, the horizontal position of the first
+        fresh sample (else zero velocity); the yaw turning at ``yaw_rate_ned_rad_s``."""
         p = self.link.state.position
         fresh = p is not None and time.monotonic() - p.received_s <= self.opt.stale_s
         alt = -p.z_ned_m if p is not None else math.nan
@@ -169,7 +174,41 @@ class LinkSession:
             if self.hold_anchor_ne_m is None and math.isfinite(here[0]) and math.isfinite(here[1]):
                 self.hold_anchor_ne_m = here
                 self.event(f"holding the position N {here[0]:.2f} m, E {here[1]:.2f} m until the path starts")
-        self.send(hold_for(config, alt, fresh, course, position_ne_m=here, anchor_ne_m=self.hold_anchor_ne_m))
+        sp = hold_for(config, alt, fresh, course, position_ne_m=here, anchor_ne_m=self.hold_anchor_ne_m)
+        if yaw_rate_ned_rad_s and isinstance(sp, VelocitySetpoint):
+            sp = replace(sp, yaw_rate_ned_rad_s=yaw_rate_ned_rad_s)
+        self.send(sp)
+
+    def face(self, course_enu_rad: float, config: TickConfig, mode: str) -> None:
+        """A hovering copter turns its nose to ``course_enu_rad`` before the path starts, holding
+        its position and height (docs/flying.md, "Facing the path"): until within
+        :data:`FACE_TOLERANCE_RAD`, or for at most :data:`FACE_TIMEOUT_S` (then the path starts
+        anyway, with a warning). A pilot's mode change or a lost link ends the flight as in the
+        climb."""
+        yaw = self.link.state.yaw_ned_rad
+        if yaw is None:
+            return
+        target_ned = frames.yaw_ned_from_enu(course_enu_rad)
+        if abs(frames.angle_diff_rad(target_ned, yaw)) <= FACE_TOLERANCE_RAD:
+            return
+        self.event(f"facing the path: yaw {math.degrees(yaw) % 360:.0f} -> {math.degrees(target_ned) % 360:.0f} deg")
+        keepalive, self.keepalive_config = self.keepalive_config, None  # this loop streams the setpoints
+        end = time.monotonic() + FACE_TIMEOUT_S
+        try:
+            while True:
+                yaw = self.link.state.yaw_ned_rad
+                if yaw is None or abs(frames.angle_diff_rad(target_ned, yaw)) <= FACE_TOLERANCE_RAD:
+                    return
+                if time.monotonic() > end:
+                    self.event(f"did not face the path within {FACE_TIMEOUT_S:g} s (yaw "
+                               f"{math.degrees(yaw) % 360:.0f} deg); starting the path anyway", MAV_SEVERITY_WARNING)
+                    return
+                self.check_mode(mode)
+                self.check_link()
+                self.hold_now(config, facing_yaw_rate_ned_rad_s(yaw, course_enu_rad))
+                self.pump(1.0 / self.opt.rate_hz)
+        finally:
+            self.keepalive_config = keepalive
 
     def send(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
         self.link.send_setpoint(sp)

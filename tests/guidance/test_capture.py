@@ -156,3 +156,18 @@ def test_capture_takes_over_only_without_a_lookahead_point():
     # goes east, to the vehicle's left: turn left at 2 V^2 / L1 = 5 m/s^2.
     out = TwoPhaseGuidance(path, params).step(0.0, VehicleState(100.0, -40.0, -math.pi / 2, V_M_S))
     assert out.extra["capture_side"] == 1 and out.a_cmd_m_s2 == pytest.approx(5.0)
+
+
+@pytest.mark.parametrize("l1_m", [5.0, 10.0, 30.0])
+def test_the_start_course_on_a_circle_is_the_chord_to_the_l1_point(l1_m):
+    """On a circle of radius R the L1 point subtends 2 asin(L1 / 2R) at the centre, and the chord
+    to it leans asin(L1 / 2R) from the tangent, towards the inside."""
+    from companion.geometry.paths import parametric_path
+    from companion.guidance.capture import start_course_rad
+
+    r = 50.0  # about (0, 50), anticlockwise from (0, 0) going east
+    circle = parametric_path(lambda u: r * np.sin(u), lambda u: r - r * np.cos(u), (0.0, 2.0 * math.pi), closed=True)
+    assert start_course_rad(circle, 0.0, 0.0, l1_m) == pytest.approx(math.asin(l1_m / (2.0 * r)), abs=1e-4)
+    # 20 m outside the circle below its start: beyond L1 (< 20 m), straight at the closest point (0, 0)
+    if l1_m < 20.0:
+        assert start_course_rad(circle, 0.0, -20.0, l1_m) == pytest.approx(math.pi / 2, abs=1e-6)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from companion.geometry.paths import function_path, waypoint_path
+from companion.geometry.paths import function_path, parametric_path, waypoint_path
 from companion.guidance.optimiser import GainOptimiser, gains_from_ratio, ratio_from_gains
 from companion.guidance.two_phase import TwoPhaseGuidance
 from companion.guidance.types import GuidanceParams, VehicleState
@@ -180,3 +180,25 @@ def test_frozen_maker_builds_the_same_object_as_the_constructor_and_refuses_vali
         make(1.5, "close_range")  # every field, in order
     with pytest.raises(TypeError):
         frozen_maker(GuidanceParams)  # validates in __post_init__
+
+
+def _circle(closed: bool):
+    """A circle of radius 50 m about (0, 50), anticlockwise from (0, 0) going east; open, it is
+    the same circle short of its last 10 degrees."""
+    end = 2.0 * math.pi if closed else 2.0 * math.pi * 35.0 / 36.0
+    return parametric_path(lambda u: 50.0 * np.sin(u), lambda u: 50.0 - 50.0 * np.cos(u), (0.0, end),
+                           closed=closed)
+
+
+@pytest.mark.parametrize("closed, beside_m, expected", [
+    (True, 5.0, False),    # 5 m above the top of the closed circle, 105 m from its start: joins it there
+    (True, 25.0, True),    # 25 m off it: more than 2 R from every point of it, flies to its start
+    (False, 5.0, True),    # the same 5 m beside an open path: the paper's test, 100 m from its start
+])
+def test_the_midcourse_trigger_measures_a_closed_path_from_its_closest_point(closed, beside_m, expected):
+    path = _circle(closed)
+    g = TwoPhaseGuidance(path, GuidanceParams(method="corrector", circle_radius_m=10.0))
+    state = VehicleState(x_m=0.0, y_m=100.0 + beside_m, course_rad=math.pi, speed_m_s=5.0)
+    assert 100.0 + beside_m > 2 * 10.0  # far from the start either way
+    assert g.should_trigger_midcourse(state) is expected
+    assert (g.step(0.0, state).phase == "midcourse") is expected
