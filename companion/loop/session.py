@@ -184,7 +184,7 @@ class LinkSession:
         its position and height (docs/flying.md, "Facing the path"): until within
         :data:`FACE_TOLERANCE_RAD`, or for at most :data:`FACE_TIMEOUT_S` (then the path starts
         anyway, with a warning). A pilot's mode change or a lost link ends the flight as in the
-        climb."""
+        climb; so does a position gone stale (the flight loop then holds)."""
         yaw = self.link.state.yaw_ned_rad
         if yaw is None:
             return
@@ -196,9 +196,11 @@ class LinkSession:
         end = time.monotonic() + FACE_TIMEOUT_S
         try:
             while True:
-                yaw = self.link.state.yaw_ned_rad
+                yaw, p = self.link.state.yaw_ned_rad, self.link.state.position
                 if yaw is None or abs(frames.angle_diff_rad(target_ned, yaw)) <= FACE_TOLERANCE_RAD:
                     return
+                if p is None or not (time.monotonic() - p.received_s <= self.opt.stale_s):
+                    return  # the flight loop holds on stale data, and says so
                 if time.monotonic() > end:
                     self.event(f"did not face the path within {FACE_TIMEOUT_S:g} s (yaw "
                                f"{math.degrees(yaw) % 360:.0f} deg); starting the path anyway", MAV_SEVERITY_WARNING)

@@ -10,8 +10,9 @@ that are not errors of the companion:
 * the mock lags the *velocity vector* (tau = 0.3 s) where LagModel lags the lateral acceleration:
   in a turn at omega = a/V the flown course trails the command by about omega tau (here up to
   ~0.2 rad at the sine's crests), shifting the track by a fraction of a metre;
-* the mock starts hovering (speed 0, yaw along the start heading) and accelerates to V within
-  V / a_max = 0.5 s; the simulator starts at speed V;
+* the mock starts hovering (speed 0, yaw along the start heading), the companion first turns it
+  to face its start course (docs/flying.md, "Facing the path"), and it accelerates to V within
+  V / a_max = 0.5 s; the simulator starts on that course at speed V;
 * the flown loop sees one tick of transport delay (the setpoint acts on the next physics step)
   and the occasional coasted tick while a re-optimisation runs.
 
@@ -44,6 +45,7 @@ from pymavlink import mavutil
 from companion.io.mock_process import MockProcess, free_udp_port
 from companion.errors import FlightAborted
 from companion.geometry import frames
+from companion.guidance.capture import start_course_rad
 from companion.guidance.types import VehicleState
 from companion.loop.runner import FlightRunner, FlyOptions, Status, make_guidance
 from companion.mission import parse_mission
@@ -108,7 +110,8 @@ def fly(m, autopilot, tmp_path, extra_mock=(), **kw):
 
 def offline(m):
     g = make_guidance(m, 50.0)
-    start = VehicleState(m.start.x_m, m.start.y_m, m.start.heading_rad, m.speed_m_s)
+    course = start_course_rad(m.path, m.start.x_m, m.start.y_m, m.guidance.l1_m)  # what the copter faces
+    start = VehicleState(m.start.x_m, m.start.y_m, course, m.speed_m_s)
     return simulate(m.path, g, start, g.params if hasattr(g, "params") else m.guidance,
                     model=LagModel(TAU_VEL_S, A_MAX_M_S2)).metrics
 

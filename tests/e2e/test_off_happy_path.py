@@ -150,8 +150,9 @@ def test_a_vehicle_that_does_not_move_stops_within_10_s(autopilot, tmp_path):
 
 
 @pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
-def test_a_runaway_holds_then_stops_within_10_s(autopilot, tmp_path):
-    # At 8 m/s the reversed law takes the vehicle 25 m out in about 4 s (5 m/s: about 6 s).
+def test_a_runaway_holds_then_stops_within_12_s(autopilot, tmp_path):
+    # The hovering copter first faces the path (docs/flying.md); then at 8 m/s the reversed law
+    # turns it round (about 2 s) and takes it 25 m out: holding about 8 s in, stopped 3 s later.
     m = parse_mission(LINE.replace("speed_m_s: 5.0", "speed_m_s: 8.0"), "line.yaml")
     port = free_udp_port()
     # 10 m left of the path: the reversed law pushes the vehicle farther out.
@@ -168,7 +169,7 @@ def test_a_runaway_holds_then_stops_within_10_s(autopilot, tmp_path):
     t_path = next(t for t, text in texts if text.startswith("flying "))  # the path starts
     hold = [t - t_path for t, text in texts if text.startswith("runaway") and "holding" in text]
     stop = [t - t_path for t, text in texts if "failsafe" in text]
-    assert hold and stop and hold[0] < stop[0] <= 10.0, texts
+    assert hold and stop and hold[0] < stop[0] <= 12.0, texts
     assert stop[0] - hold[0] == pytest.approx(3.0, abs=0.5)  # --xtrack-hold-s 3
 
 

@@ -7,7 +7,10 @@ Knobs for faults: ``drop_positions_at_s`` (stop the position stream, keep the re
 with a STATUSTEXT reason), ``arm_delay_s`` (ACK an arm command ACCEPTED at once, show the armed
 flag in the HEARTBEAT only this much later, as PX4 does), ``positions_from_s`` (no position
 before then; a STATUSTEXT and an EKF_STATUS_REPORT say why), ``unknown_ids_hz`` (frames with a
-message id the dialect does not know, as a real PX4 sends).
+message id the dialect does not know, as a real PX4 sends). Its yaw is the direction of its
+velocity while it moves (above 0.1 m/s) and integrates the setpoints' yaw rate while it hovers;
+it starts at ``yaw`` (NED, default east: facing along the tests' line going east, so that the
+companion has no turn to make before the path).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ PX4_HOLD = (4 << 16) | (3 << 24)
 class KinematicAutopilot(threading.Thread):
     def __init__(self, dest, autopilot="px4", x=0.0, y=0.0, alt=10.0, vn=0.0, ve=0.0, armed=True,
                  drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0, mode_return_at_s=None,
-                 arm_delay_s=0.0, positions_from_s=0.0, unknown_ids_hz=0.0):
+                 arm_delay_s=0.0, positions_from_s=0.0, unknown_ids_hz=0.0, yaw=math.pi / 2):
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -53,6 +56,8 @@ class KinematicAutopilot(threading.Thread):
         self.armed = armed
         self.pos = [x, y, -alt]
         self.vel = [vn, ve, 0.0]
+        self.yaw = yaw
+        self.yaw_rate = 0.0
         self.drop_positions_at_s = drop_positions_at_s
         self.mode_change_at_s = mode_change_at_s
         self.mode_return_at_s = mode_return_at_s  # the "pilot" selects OFFBOARD/GUIDED again
@@ -85,6 +90,11 @@ class KinematicAutopilot(threading.Thread):
                     self.pos[i] += self.vel[i] * dt
             else:
                 self.vel = [0.0, 0.0, 0.0]
+                self.yaw_rate = 0.0
+            if math.hypot(self.vel[0], self.vel[1]) > 0.1:
+                self.yaw = math.atan2(self.vel[1], self.vel[0])
+            else:
+                self.yaw += self.yaw_rate * dt
             if self.mode_change_at_s is not None and self.offboard_entered_s is not None and \
                     t - self.offboard_entered_s >= self.mode_change_at_s and self.custom_mode == self.guided_mode:
                 if not self._returned:
@@ -115,7 +125,7 @@ class KinematicAutopilot(threading.Thread):
                     self.positions_sent.append(tb)
                 next_pos = t + 0.02
             if t >= next_att:
-                yaw = math.atan2(self.vel[1], self.vel[0]) if math.hypot(self.vel[0], self.vel[1]) > 0.1 else 0.0
+                yaw = math.atan2(math.sin(self.yaw), math.cos(self.yaw))
                 self.mav.attitude_send(tb, 0.0, 0.0, yaw, 0.0, 0.0, 0.0)
                 next_att = t + 0.05
 
@@ -132,6 +142,7 @@ class KinematicAutopilot(threading.Thread):
                 self.setpoints.append((t, m))
                 self.last_setpoint_s = t
                 self.vel = [m.vx, m.vy, m.vz]
+                self.yaw_rate = m.yaw_rate
             elif mt == "COMMAND_LONG":
                 self.commands.append((t, m))
                 result = 0

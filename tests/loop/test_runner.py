@@ -12,7 +12,9 @@ from pymavlink import mavutil
 from companion.errors import FlightAborted, LinkError
 from companion.geometry.paths import waypoint_path
 from companion.guidance.types import GuidanceOutput
+from companion.io.setpoints import FACE_MAX_RATE_RAD_S
 from companion.loop.runner import FlightRunner, FlyOptions, Status
+from companion.loop.session import FACE_TOLERANCE_RAD
 from companion.mission import Mission
 from kinematic_peer import KinematicAutopilot
 
@@ -81,11 +83,12 @@ def test_px4_flight_streams_a_second_before_offboard_and_records_every_setpoint(
     assert all(m.type_mask == 1479 and m.coordinate_frame == 1 for m in sent)
     assert (tmp_path / "f.tlog.mission.yaml").read_text() == "name: line\n"
     # The guidance was given ENU: 1 m north is y = +1 (left of the eastbound path). The vehicle
-    # hovered (zero velocity) until OFFBOARD, so the course falls back to its yaw: NED 0 (north)
-    # is ENU +pi/2.
+    # hovered (zero velocity) until OFFBOARD, so the course falls back to its yaw, which it turned
+    # to face the path's L1 point 1 m to its right and 9.95 m ahead (ENU -5.7 deg) from east (the
+    # peer's start, ENU 0), to within the facing tolerance.
     first = g.calls[0][1]
     assert first.y_m == pytest.approx(1.0, abs=1e-6)
-    assert first.course_rad == pytest.approx(math.pi / 2, abs=1e-6) and first.speed_m_s == 5.0
+    assert abs(first.course_rad + math.asin(0.1)) <= FACE_TOLERANCE_RAD + 0.02 and first.speed_m_s == 5.0
     assert s["d_rms_m"] >= 0 and s["samples"] > 0
     # The end-of-path tick is not a phase: the names and phases are the simulator's.
     assert "finished" not in s["phases"]
@@ -358,3 +361,19 @@ def test_the_setpoint_stream_does_not_pause_after_offboard_while_the_interpreter
     times = [t for t, _ in peer.setpoints if t >= t_offboard]
     gaps = [b - a for a, b in zip(times, times[1:])]
     assert len(times) > 10 and max(gaps) < 0.2, max(gaps)
+
+
+@pytest.mark.parametrize("x_m, yaw_deg, turns", [(1.0, 0.0, True), (0.0, 90.0, False), (1.0, -100.0, True)])
+def test_a_hovering_copter_faces_the_path_before_the_first_tick(free_udp_port, tmp_path, x_m, yaw_deg, turns):
+    # hovering x_m north of the line going east, its nose at yaw_deg (NED): the first tick's
+    # course (the yaw, the copter being at rest) faces the path's L1 point (10 m away: 1 m to
+    # the right, so ENU -asin(0.1); on the line, east), within the facing tolerance
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", x=x_m, yaw=math.radians(yaw_deg))
+    g = StraightLineGuidance(finish_x_m=0.5)
+    runner = fly(free_udp_port, tmp_path, peer, g, max_duration_s=1.0)
+    want = -math.asin(x_m / 10.0)
+    assert abs(g.calls[0][1].course_rad - want) <= FACE_TOLERANCE_RAD + 0.02
+    assert any(e.startswith("facing the path") for e in runner.events) is turns
+    if turns:  # the short way round (0 -> 84: clockwise; -100 -> 84: 176 deg anticlockwise), capped
+        sign = 1.0 if yaw_deg == 0.0 else -1.0
+        assert max(sign * m.yaw_rate for _, m in peer.setpoints) == pytest.approx(FACE_MAX_RATE_RAD_S, rel=1e-6)

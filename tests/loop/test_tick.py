@@ -139,3 +139,23 @@ def test_the_hold_keeps_an_anchor_only_with_a_fresh_sample_and_velocity_output()
     # a plane's hold is wings level, never a position
     plane = TickConfig(speed_m_s=15.0, rate_hz=50.0, altitude_m=50.0, output="attitude")
     assert hold_for(plane, 50.0, True, 0.0, position_ne_m=(-2.0, 0.0), anchor_ne_m=(0.0, 0.0)).roll_ned_rad == 0.0
+
+
+@pytest.mark.parametrize("vx, vy, gathering", [(0.5, 1.0, True), (0.0, 2.49, True), (1.0, 2.4, False)])
+def test_below_half_the_speed_the_course_is_the_commanded_one(vx, vy, gathering):
+    """A copter gathering speed (1.1 m/s, 26.6 deg north of east; 2.49 m/s east) flies towards its
+    commanded course (-0.1 rad), whatever its velocity's direction yet: the guidance gets that
+    course and the command integrates from it, unclamped. From V/2 (2.6 m/s at 22.6 deg) on the
+    measured course stands, and the command leads it by at most 45 deg."""
+    g = ConstantTurn(a=1.0)
+    r = compute_tick(g, 1, 0.02, sample(vx=vx, vy=vy), 0.0, CFG, prev_course_cmd_rad=-0.1)
+    measured = math.atan2(vx, vy)
+    given = g.calls[0][1].course_rad
+    if gathering:
+        assert given == -0.1 and r.course_cmd_rad == pytest.approx(-0.1 + 0.004)
+    else:
+        assert given == pytest.approx(measured) and r.course_cmd_rad == pytest.approx(-0.1 + 0.004)
+    # the first tick (no commanded course yet) keeps the measured course
+    g0 = ConstantTurn(a=0.0)
+    compute_tick(g0, 0, 0.0, sample(vx=vx, vy=vy), 0.0, CFG)
+    assert g0.calls[0][1].course_rad == pytest.approx(measured)
