@@ -334,12 +334,13 @@ class FlightRunner:
                 f"({config.output} setpoints, {self.opt.clock} clock)")
 
     def _face_the_path(self, s: LinkSession, config: TickConfig, mode: str) -> None:
-        """A copter hovering (slower than the course speed) turns to face the course it starts on
+        """A copter hovering (slower than half the mission speed: a hovering PX4 SIH reports up to
+        0.65 m/s, its velocity estimate's bias) turns to face the course it starts on
         (:func:`companion.guidance.capture.start_course_rad`): a velocity loop flies any direction,
         but every law reads a hovering copter's course from its nose (docs/flying.md)."""
         p = s.link.state.position
         if (s.link.info.vehicle != "copter" or config.output != "velocity" or p is None
-                or math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) >= config.min_course_speed_m_s):
+                or math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) >= config.gathering_fraction * config.speed_m_s):
             return
         x, y, _ = frames.enu_from_ned(p.x_ned_m, p.y_ned_m, p.z_ned_m)
         s.face(start_course_rad(self.mission.path, x, y, self.mission.guidance.l1_m), config, mode)

@@ -14,10 +14,11 @@ Rules applied here (and therefore identically in flight and in replay):
 * the course handed to the guidance is the direction of the measured ground velocity; below
   ``min_course_speed_m_s`` it falls back to the attitude yaw, then to the previous course. A
   vehicle with velocity output still gathering speed (slower than ``gathering_fraction`` of
-  the mission speed, after the first tick) is handed its commanded course instead: its velocity
-  loop is driving it that way, and the direction of a slow velocity is mostly the loop's
-  transient and the estimate's bias (a lateral error of 0.1 m/s is 6 deg at 1 m/s; every law
-  reads it as if flown at V). On the mock's ArduCopter, taking off along the racetrack,
+  the mission speed) is handed its commanded course instead (on the first tick, its yaw: the
+  copter faced its start course, docs/flying.md): its velocity loop is driving it that way, and
+  the direction of a slow velocity is mostly the loop's transient and the estimate's bias (a
+  lateral error of 0.1 m/s is 6 deg at 1 m/s; every law reads it as if flown at V; a hovering
+  PX4 SIH reported 0.5-0.65 m/s while its position moved by centimetres). On the mock's ArduCopter, taking off along the racetrack,
   ``predictive`` answered those swings with +-1.8 m/s^2 for 5 s (docs/flying.md);
 * the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V);
   a mission with a profile (``TickConfig.profile``) commands ``V(s)`` and the altitude hold on
@@ -238,9 +239,13 @@ def compute_tick(
         phase = "hold"
     else:
         course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
-        if (config.output == "velocity" and prev_course_cmd_rad is not None and math.isfinite(prev_course_cmd_rad)
+        if (config.output == "velocity"
                 and math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) < config.gathering_fraction * config.speed_m_s):
-            course = prev_course_cmd_rad  # still gathering speed: the velocity's direction is not yet the course
+            # still gathering speed: the velocity's direction is not yet the course
+            if prev_course_cmd_rad is not None and math.isfinite(prev_course_cmd_rad):
+                course = prev_course_cmd_rad
+            elif yaw_ned_rad is not None and math.isfinite(yaw_ned_rad):
+                course = frames.course_enu_from_ned(yaw_ned_rad)
         x_enu, y_enu, _ = frames.enu_from_ned(sample.x_ned_m, sample.y_ned_m, sample.z_ned_m)
         state = _vehicle_state(x_m=x_enu, y_m=y_enu, course_rad=course, speed_m_s=config.speed_m_s)
         output = guidance.step(t_s, state)

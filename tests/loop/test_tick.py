@@ -145,7 +145,7 @@ def test_the_hold_keeps_an_anchor_only_with_a_fresh_sample_and_velocity_output()
 def test_below_half_the_speed_the_course_is_the_commanded_one(vx, vy, gathering):
     """A copter gathering speed (1.1 m/s, 26.6 deg north of east; 2.49 m/s east) flies towards its
     commanded course (-0.1 rad), whatever its velocity's direction yet: the guidance gets that
-    course and the command integrates from it, unclamped. From V/2 (2.6 m/s at 22.6 deg) on the
+    course and the command integrates from it, unclamped; on the first tick, its yaw. From V/2 (2.6 m/s at 22.6 deg) on the
     measured course stands, and the command leads it by at most 45 deg."""
     g = ConstantTurn(a=1.0)
     r = compute_tick(g, 1, 0.02, sample(vx=vx, vy=vy), 0.0, CFG, prev_course_cmd_rad=-0.1)
@@ -155,7 +155,10 @@ def test_below_half_the_speed_the_course_is_the_commanded_one(vx, vy, gathering)
         assert given == -0.1 and r.course_cmd_rad == pytest.approx(-0.1 + 0.004)
     else:
         assert given == pytest.approx(measured) and r.course_cmd_rad == pytest.approx(-0.1 + 0.004)
-    # the first tick (no commanded course yet) keeps the measured course
+    # the first tick (no commanded course yet): the yaw (facing south) while gathering speed,
+    # else the measured course; without a yaw, the measured course
     g0 = ConstantTurn(a=0.0)
+    compute_tick(g0, 0, 0.0, sample(vx=vx, vy=vy), 0.0, CFG, yaw_ned_rad=math.pi)
     compute_tick(g0, 0, 0.0, sample(vx=vx, vy=vy), 0.0, CFG)
-    assert g0.calls[0][1].course_rad == pytest.approx(measured)
+    assert g0.calls[0][1].course_rad == pytest.approx(-math.pi / 2 if gathering else measured)
+    assert g0.calls[1][1].course_rad == pytest.approx(measured)
