@@ -21,8 +21,8 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, TextIO
 
 from companion.errors import FlightAborted, LinkError
-from companion.io.link import MAV_RESULT_NAMES, MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING, MavLink
 from companion.geometry import frames
+from companion.io.link import MAV_RESULT_NAMES, MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING, MavLink
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint, facing_yaw_rate_ned_rad_s
 from companion.loop.tick import TickConfig, course_from_sample, hold_for
 

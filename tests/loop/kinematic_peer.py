@@ -10,7 +10,7 @@ before then; a STATUSTEXT and an EKF_STATUS_REPORT say why), ``unknown_ids_hz`` 
 message id the dialect does not know, as a real PX4 sends). Its yaw is the direction of its
 velocity while it moves (above 0.1 m/s) and integrates the setpoints' yaw rate while it hovers;
 it starts at ``yaw`` (NED, default east: facing along the tests' line going east, so that the
-companion has no turn to make before the path).
+companion has no turn to make before the path); ``yaw_turns=False`` ignores the yaw rate.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ PX4_HOLD = (4 << 16) | (3 << 24)
 class KinematicAutopilot(threading.Thread):
     def __init__(self, dest, autopilot="px4", x=0.0, y=0.0, alt=10.0, vn=0.0, ve=0.0, armed=True,
                  drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0, mode_return_at_s=None,
-                 arm_delay_s=0.0, positions_from_s=0.0, unknown_ids_hz=0.0, yaw=math.pi / 2):
+                 arm_delay_s=0.0, positions_from_s=0.0, unknown_ids_hz=0.0, yaw=math.pi / 2, yaw_turns=True):
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -58,6 +58,7 @@ class KinematicAutopilot(threading.Thread):
         self.vel = [vn, ve, 0.0]
         self.yaw = yaw
         self.yaw_rate = 0.0
+        self.yaw_turns = yaw_turns  # False: the yaw rate setpoints are ignored (a stuck yaw)
         self.drop_positions_at_s = drop_positions_at_s
         self.mode_change_at_s = mode_change_at_s
         self.mode_return_at_s = mode_return_at_s  # the "pilot" selects OFFBOARD/GUIDED again
@@ -93,7 +94,7 @@ class KinematicAutopilot(threading.Thread):
                 self.yaw_rate = 0.0
             if math.hypot(self.vel[0], self.vel[1]) > 0.1:
                 self.yaw = math.atan2(self.vel[1], self.vel[0])
-            else:
+            elif self.yaw_turns:
                 self.yaw += self.yaw_rate * dt
             if self.mode_change_at_s is not None and self.offboard_entered_s is not None and \
                     t - self.offboard_entered_s >= self.mode_change_at_s and self.custom_mode == self.guided_mode:

@@ -377,3 +377,15 @@ def test_a_hovering_copter_faces_the_path_before_the_first_tick(free_udp_port, t
     if turns:  # the short way round (0 -> 84: clockwise; -100 -> 84: 176 deg anticlockwise), capped
         sign = 1.0 if yaw_deg == 0.0 else -1.0
         assert max(sign * m.yaw_rate for _, m in peer.setpoints) == pytest.approx(FACE_MAX_RATE_RAD_S, rel=1e-6)
+
+
+def test_a_yaw_that_does_not_turn_starts_the_path_after_the_facing_timeout_with_a_warning(
+        free_udp_port, tmp_path, monkeypatch):
+    import companion.loop.session as session
+
+    monkeypatch.setattr(session, "FACE_TIMEOUT_S", 0.5)
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "px4", yaw=0.0, yaw_turns=False)
+    g = StraightLineGuidance(finish_x_m=0.5)
+    runner = fly(free_udp_port, tmp_path, peer, g, max_duration_s=1.0)
+    assert any(e.startswith("did not face the path within 0.5 s (yaw 0 deg)") for e in runner.events), runner.events
+    assert g.calls and g.calls[0][1].course_rad == pytest.approx(math.pi / 2, abs=1e-6)  # still its yaw, north
