@@ -339,8 +339,7 @@ class FlightRunner:
         (:func:`companion.guidance.capture.start_course_rad`): a velocity loop flies any direction,
         but every law reads a hovering copter's course from its nose (docs/flying.md)."""
         p = s.link.state.position
-        if (s.link.info.vehicle != "copter" or config.output != "velocity" or p is None
-                or math.hypot(p.vx_ned_m_s, p.vy_ned_m_s) >= config.gathering_fraction * config.speed_m_s):
+        if s.link.info.vehicle != "copter" or p is None or not config.gathering(p):
             return
         x, y, _ = frames.enu_from_ned(p.x_ned_m, p.y_ned_m, p.z_ned_m)
         s.face(start_course_rad(self.mission.path, x, y, self.mission.guidance.l1_m), config, mode)

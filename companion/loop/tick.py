@@ -18,8 +18,9 @@ Rules applied here (and therefore identically in flight and in replay):
   copter faced its start course, docs/flying.md): its velocity loop is driving it that way, and
   the direction of a slow velocity is mostly the loop's transient and the estimate's bias (a
   lateral error of 0.1 m/s is 6 deg at 1 m/s; every law reads it as if flown at V; a hovering
-  PX4 SIH reported 0.5-0.65 m/s while its position moved by centimetres). On the mock's ArduCopter, taking off along the racetrack,
-  ``predictive`` answered those swings with +-1.8 m/s^2 for 5 s (docs/flying.md);
+  PX4 SIH reported 0.5-0.65 m/s while its position moved by centimetres). On the mock's
+  ArduCopter, taking off along the racetrack, ``predictive`` answered those swings with
+  +-1.8 m/s^2 for 5 s (docs/flying.md);
 * the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V);
   a mission with a profile (``TickConfig.profile``) commands ``V(s)`` and the altitude hold on
   ``h(s)`` with the feed-forward climb ``V(s) dh/ds`` at the tick's projection ``s``
@@ -131,6 +132,12 @@ class TickConfig:
         if not (0 < self.max_bank_deg < 90):
             raise ValueError(f"max_bank_deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
 
+    def gathering(self, sample: PositionSample) -> bool:
+        """Velocity output and slower than ``gathering_fraction`` of the mission speed: hovering or
+        still gathering speed, so the direction of the measured velocity is not yet a course."""
+        return (self.output == "velocity"
+                and math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) < self.gathering_fraction * self.speed_m_s)
+
     @cached_property
     def dt_s(self) -> float:
         return 1.0 / self.rate_hz
@@ -180,6 +187,19 @@ class TickResult:
 #: Every field by name, filled at once (``frozen_maker``: one tick builds these 50 times a second).
 _tick_result = frozen_maker(TickResult)
 _vehicle_state = frozen_maker(VehicleState)
+
+
+def _gathering_course(config: TickConfig, sample: PositionSample, yaw_ned_rad: float | None,
+                      prev_course_cmd_rad: float | None) -> float | None:
+    """The course of a vehicle still gathering speed (:meth:`TickConfig.gathering`): the commanded
+    one, else (the first tick) the yaw; None when it is not gathering speed, or neither is known."""
+    if not config.gathering(sample):
+        return None
+    if prev_course_cmd_rad is not None and math.isfinite(prev_course_cmd_rad):
+        return prev_course_cmd_rad
+    if yaw_ned_rad is not None and math.isfinite(yaw_ned_rad):
+        return frames.course_enu_from_ned(yaw_ned_rad)
+    return None
 
 
 def course_from_sample(sample: PositionSample | None, yaw_ned_rad: float | None, prev_course_rad: float,
@@ -238,14 +258,9 @@ def compute_tick(
         setpoint = hold_for(config, alt_m, False, prev_course_rad)
         phase = "hold"
     else:
-        course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
-        if (config.output == "velocity"
-                and math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) < config.gathering_fraction * config.speed_m_s):
-            # still gathering speed: the velocity's direction is not yet the course
-            if prev_course_cmd_rad is not None and math.isfinite(prev_course_cmd_rad):
-                course = prev_course_cmd_rad
-            elif yaw_ned_rad is not None and math.isfinite(yaw_ned_rad):
-                course = frames.course_enu_from_ned(yaw_ned_rad)
+        course = _gathering_course(config, sample, yaw_ned_rad, prev_course_cmd_rad)
+        if course is None:
+            course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
         x_enu, y_enu, _ = frames.enu_from_ned(sample.x_ned_m, sample.y_ned_m, sample.z_ned_m)
         state = _vehicle_state(x_m=x_enu, y_m=y_enu, course_rad=course, speed_m_s=config.speed_m_s)
         output = guidance.step(t_s, state)
