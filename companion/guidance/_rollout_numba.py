@@ -86,12 +86,13 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
              x0: float, y0: float, h0: float, a0: float, look: np.ndarray, step_plans: np.ndarray, speed: float,
              wind_x: float, wind_y: float, alpha: float, dt: float, cff: float, lead: float, limit: float,
              centre0: int, back: int, ahead: int, whole: bool, d_ref: np.ndarray, w_d: float, w_u: float,
-             min_speed: float) -> np.ndarray:
-    """Residuals ``(rows, 2 * steps)`` of the rollouts; the arguments as
+             min_speed: float, terminal: np.ndarray) -> np.ndarray:
+    """Residuals ``(rows, 2 * steps + 3)`` of the rollouts; the arguments as
     :meth:`PredictiveGuidance.rollout` has them (window samples ``wx .. wk``; the band
-    ``centre0, back, ahead, whole`` of :class:`companion.guidance.predictive._Band`)."""
+    ``centre0, back, ahead, whole`` of :class:`companion.guidance.predictive._Band`; the
+    cost-to-go factor ``terminal``, :func:`companion.guidance.predictive.cost_to_go_factor`)."""
     rows, steps, n = look.shape[0], step_plans.shape[0], wx.shape[0]
-    res = np.empty((rows, 2 * steps))
+    res = np.empty((rows, 2 * steps + 3))
     r2 = np.empty(n)
     windy = wind_x != 0.0 or wind_y != 0.0
     for row in range(rows):
@@ -117,4 +118,18 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
             if windy:
                 mx, my = mx + wind_x, my + wind_y
             x, y, h = x + mx * dt, y + my * dt, h + dh
+        # the cost to go from where the row ends: its deviation (d, d', a - V^2 kappa)
+        gx, gy = speed * math.cos(h), speed * math.sin(h)
+        if windy:
+            gx, gy = gx + wind_x, gy + wind_y
+        lo_j, hi_j = (0, n - 1) if whole else (max(centre - back, 0), min(centre + ahead, n - 1))
+        i0 = _nearest(wx, wy, x, y, lo_j, hi_j, r2)
+        ex, ey = x - wx[i0], y - wy[i0]
+        tx, ty = wtx[i0], wty[i0]
+        along_c = min(max(tx * ex + ty * ey, -spacing), spacing)
+        dev0 = tx * ey - ty * ex - 0.5 * wk[i0] * along_c * along_c
+        dev1 = tx * gy - ty * gx
+        dev2 = a_act - (gx * gx + gy * gy) * 2.0 * (0.5 * wk[i0])
+        for r in range(3):
+            res[row, 2 * steps + r] = terminal[r, 0] * dev0 + terminal[r, 1] * dev1 + terminal[r, 2] * dev2
     return res

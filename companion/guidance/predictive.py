@@ -43,6 +43,11 @@ its feedback core and adds:
    lateral acceleration the vehicle flies departs from the model (more lag, less acceleration),
    the law plans with the candidate model that explains it, or drops the plan and flies its
    feedback core; see :class:`ModelMonitor`.
+8. **A cost to go at the horizon** (``terminal_cost``): each rollout is charged, where it ends,
+   the least cost of bringing its deviation from the path back to zero (the Riccati solution of
+   the linearised vehicle under the same cost, :func:`cost_to_go_factor`). Without it the plan
+   eased off its last corrections, whose cost fell past the horizon, and a large lambda cut
+   inside what it flew.
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
@@ -57,6 +62,7 @@ Pure maths (numpy only), deterministic: the same sequence of inputs gives the sa
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -105,6 +111,9 @@ class PredictiveParams:
     adapt_model : watch the lateral acceleration the vehicle actually flies and, when it departs
         from the model (more lag, less acceleration), plan with the candidate model that explains
         it, or fall back to the feedback core (see :class:`ModelMonitor`).
+    terminal_cost : charge every rollout, at its horizon, the cost of bringing its deviation from
+        the path back to zero afterwards (see :func:`cost_to_go_factor`); False is the law as it
+        was, whose plan did not see past its horizon.
     """
 
     lambda_s4: float = DEFAULT_LAMBDA_S4
@@ -123,6 +132,7 @@ class PredictiveParams:
     curvature_ff: float = 1.0
     capture_tc_scale: float = 0.6
     adapt_model: bool = False
+    terminal_cost: bool = True
 
     def __post_init__(self) -> None:
         def number(name: str) -> float:
@@ -131,8 +141,9 @@ class PredictiveParams:
                 raise ValueError(f"{name}: expected a number, got {value!r}")
             return float(value)
 
-        if not isinstance(self.adapt_model, bool):
-            raise ValueError(f"adapt_model: expected true or false, got {self.adapt_model!r}")
+        for name in ("adapt_model", "terminal_cost"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         if not 0.0 <= number("curvature_ff") <= 1.0:
             raise ValueError(f"curvature_ff: expected a number in [0, 1], got {self.curvature_ff!r}")
         for name in ("lambda_s4", "lag_s", "capture_tc_scale"):
@@ -360,6 +371,59 @@ def capture_reference(d0_m: float, d_rate0_m_s: float, tc_s: float, t_s: np.ndar
         return np.zeros_like(t)
     rate = 0.0 if d0_m * d_rate0_m_s > 0.0 else d_rate0_m_s
     return (d0_m + (rate + d0_m / tc_s) * t) * np.exp(-t / tc_s)
+
+
+def cost_to_go_factor(lag_s: float, lambda_s4: float) -> np.ndarray:
+    """The cost of a deviation from the path left at a rollout's horizon, as a factor.
+
+    A 3 x 3 matrix ``M`` such that ``|M x|^2 = x' P x`` is the least cost
+    ``integral (d^2 + lambda u^2) dt`` of bringing the deviation ``x = (d, d', a)`` (cross-track
+    error in m, its rate in m/s, the achieved lateral acceleration less the path's ``V^2 kappa``
+    in m/s^2) back to zero, for the linearised vehicle ``d'' = a``, ``a' = (u - a) / tau``
+    (``d'' = u`` with ``lag_s`` 0, when the third column of ``M`` is zero): the solution ``P``
+    of the continuous algebraic Riccati equation, the infinite-horizon optimum of the cost the
+    rollouts count over their horizon. For the ideal vehicle it has a closed form,
+    ``P = [[sqrt(2) lambda^(1/4), lambda^(1/2)], [lambda^(1/2), sqrt(2) lambda^(3/4)]]``.
+
+    The rollouts add ``M x_T`` to their residuals: without it a plan saw nothing past its horizon,
+    so, the larger ``lambda`` was, the more it cut a bend whose way back to the path fell beyond
+    the horizon (``docs/benchmarks.md``). Zero for ``lambda_s4`` 0 (no cost to go back).
+    """
+    from scipy.linalg import solve_continuous_are
+
+    if not lambda_s4 > 0.0:
+        return np.zeros((3, 3))
+    p = np.zeros((3, 3))
+    if lag_s > 0.0:
+        a = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0 / lag_s]])
+        b = np.array([[0.0], [0.0], [1.0 / lag_s]])
+        p[:] = solve_continuous_are(a, b, np.diag([1.0, 0.0, 0.0]), np.array([[lambda_s4]]))
+    else:
+        a2 = np.array([[0.0, 1.0], [0.0, 0.0]])
+        b2 = np.array([[0.0], [1.0]])
+        p[:2, :2] = solve_continuous_are(a2, b2, np.diag([1.0, 0.0]), np.array([[lambda_s4]]))
+    w, v = np.linalg.eigh(0.5 * (p + p.T))
+    factor: np.ndarray = np.sqrt(np.maximum(w, 0.0))[:, None] * v.T
+    return factor
+
+
+_cost_to_go_cached = functools.lru_cache(maxsize=64)(cost_to_go_factor)  # per (lag, lambda) planned with
+_NO_COST_TO_GO = np.zeros((3, 3))  # terminal_cost off
+
+
+def _cost_to_go(win: _Window, xy: np.ndarray, h: np.ndarray, a_act: np.ndarray, speed: np.ndarray,
+                wind: np.ndarray | None, band: _Band, factor: np.ndarray) -> np.ndarray:
+    """The last three residuals of the numpy rollouts: ``factor`` (:func:`cost_to_go_factor`)
+    times each row's deviation ``(d, d', a - V^2 kappa)`` where it ends (positions ``xy``,
+    headings ``h``, achieved accelerations ``a_act``)."""
+    ground = speed * np.stack([np.cos(h), np.sin(h)])
+    if wind is not None:
+        ground += wind
+    _, d_end, _, near, _ = _project(win, xy, band)
+    rate_end = near[2] * ground[1] - near[3] * ground[0]  # across the path, left positive
+    a_dev = a_act - (ground[0] * ground[0] + ground[1] * ground[1]) * _TWO * near[6]
+    residuals: np.ndarray = (factor @ np.stack([d_end, rate_end, a_dev])).T
+    return residuals
 
 
 def pursuit_command(win: _Window, x: np.ndarray, y: np.ndarray, course_rad: np.ndarray, speed_m_s: np.ndarray,
@@ -611,12 +675,13 @@ class PredictiveGuidance:
 
     def rollout(self, state: VehicleState, look_m: np.ndarray, plans: np.ndarray,
                 d_ref_m: np.ndarray | None = None) -> np.ndarray:
-        """Batched closed-loop rollouts; returns the residuals ``(K, 2 * steps)``.
+        """Batched closed-loop rollouts; returns the residuals ``(K, 2 * steps + 3)``.
 
         Row k flies pursuit with look-ahead ``look_m[k]`` plus the piecewise-constant correction
         ``plans[k]`` through the lag and the limit. The cost of a row is the sum of its squared
         residuals: ``sum ((d - r)^2 + lambda u^2) dt``, r the capture reference ``d_ref_m`` (one
-        value per rollout step; None: zero).
+        value per rollout step; None: zero), plus the cost to go from where it ends (the last
+        three, :func:`cost_to_go_factor`; zero with ``terminal_cost`` off).
         """
         p = self.params
         win = self._win
@@ -625,6 +690,7 @@ class PredictiveGuidance:
         heading, v_air = self._air(state)
         step_plans = plans.T[self._seg_of_step]  # every row's correction at every step
         cff, lead, limit = p.curvature_ff, self._lag_s, self._a_max
+        to_go = _cost_to_go_cached(self._lag_s, p.lambda_s4) if p.terminal_cost else _NO_COST_TO_GO
         band = _band(win, np.full(k, win.index_of(self._s_win)), v_air, p.rollout_dt_s, self._d_win)
         if self._kernel is not None and self.compiled:
             return self._kernel(
@@ -634,7 +700,7 @@ class PredictiveGuidance:
                 self._alpha(p.rollout_dt_s), float(p.rollout_dt_s), float(cff), float(lead), float(limit),
                 int(band.centre[0]), band.back, band.ahead, band.whole,
                 np.zeros(self._steps) if d_ref_m is None else np.ascontiguousarray(d_ref_m, dtype=float),
-                math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S)
+                math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S, to_go)
         h = np.full(k, heading)
         xy = np.empty((2, k))  # x and y in rows, as the pursuit takes them
         xy[0], xy[1] = state.x_m, state.y_m
@@ -672,9 +738,10 @@ class PredictiveGuidance:
         d_steps, u_steps = np.array(ds), np.array(us)
         if d_ref_m is not None:
             d_steps -= d_ref_m[:, None]
-        res = np.empty((k, 2 * self._steps))
-        res[:, 0::2] = (d_steps * math.sqrt(p.rollout_dt_s)).T
-        res[:, 1::2] = (u_steps * math.sqrt(p.lambda_s4 * p.rollout_dt_s)).T
+        res = np.empty((k, 2 * self._steps + 3))
+        res[:, 0:-3:2] = (d_steps * math.sqrt(p.rollout_dt_s)).T
+        res[:, 1:-3:2] = (u_steps * math.sqrt(p.lambda_s4 * p.rollout_dt_s)).T
+        res[:, -3:] = _cost_to_go(win, xy, h, a_act, speed, wind, band, to_go)
         return res
 
     def _shifted_plan(self, t_s: float) -> np.ndarray:

@@ -43,6 +43,7 @@ def load() -> Rollout | None:
         else:
             s, z = np.arange(5.0), np.zeros(5)
             _rollout(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0.0, 0.0, np.array([3.0]), np.zeros((2, 1)), 5.0, 0.0,
-                     0.0, 0.5, 0.2, 1.0, 0.3, 5.0, 2, 3, 5, False, np.zeros(2), 0.4, 0.1, 0.1)
+                     0.0, 0.5, 0.2, 1.0, 0.3, 5.0, 2, 3, 5, False, np.zeros(2), 0.4, 0.1, 0.1,
+                     np.zeros((3, 3)))
             _loaded.append(_rollout)
     return _loaded[0]
