@@ -56,7 +56,8 @@ Pointing away, that goal lies behind the beam: the law then turns round at its b
 ``docs/guidance.md``, "Capture far from the path"). An
 open path is continued straight past its end, as the baselines do.
 
-Pure maths (numpy only), deterministic: the same sequence of inputs gives the same outputs.
+Pure maths (numpy; scipy for the Riccati equation of the cost to go), deterministic: the same
+sequence of inputs gives the same outputs.
 ``docs/benchmarks.md`` shows its fronts against the other laws and where a baseline still wins.
 """
 
