@@ -37,18 +37,27 @@ def _nearest(wx: np.ndarray, wy: np.ndarray, x: float, y: float, lo_j: int, hi_j
 
 
 @_compiled
+def _offset(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk: np.ndarray, spacing: float,
+            x: float, y: float, i0: int) -> tuple[float, float]:
+    """``_project`` from the nearest sample ``i0`` on: the signed cross-track error of ``(x, y)``
+    to the osculating circle there and its distance along the tangent (not clipped)."""
+    ex = x - wx[i0]
+    ey = y - wy[i0]
+    tx, ty = wtx[i0], wty[i0]
+    along = tx * ex + ty * ey
+    along_c = min(max(along, -spacing), spacing)
+    return tx * ey - ty * ex - 0.5 * wk[i0] * along_c * along_c, along
+
+
+@_compiled
 def _pursue(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk: np.ndarray, spacing: float,
             x: float, y: float, course: float, v: float, look: float, cff: float, lead: float, i0: int,
             r2: np.ndarray) -> tuple[float, float]:
     """``_project`` from the nearest sample ``i0`` on, and ``_pursue``: the command and the
     cross-track error of one row."""
     n = wx.shape[0]
-    ex = x - wx[i0]
-    ey = y - wy[i0]
     tx, ty = wtx[i0], wty[i0]
-    along = tx * ex + ty * ey
-    along_c = min(max(along, -spacing), spacing)
-    d = tx * ey - ty * ex - 0.5 * wk[i0] * along_c * along_c
+    d, along = _offset(wx, wy, wtx, wty, wk, spacing, x, y, i0)
     # the goal: the first sample from i0 on at L_eff or more, interpolated from the one before
     l_eff = max(look, math.sqrt(2.0) * abs(d))
     jg = -1
@@ -124,11 +133,8 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
             gx, gy = gx + wind_x, gy + wind_y
         lo_j, hi_j = (0, n - 1) if whole else (max(centre - back, 0), min(centre + ahead, n - 1))
         i0 = _nearest(wx, wy, x, y, lo_j, hi_j, r2)
-        ex, ey = x - wx[i0], y - wy[i0]
-        tx, ty = wtx[i0], wty[i0]
-        along_c = min(max(tx * ex + ty * ey, -spacing), spacing)
-        dev0 = tx * ey - ty * ex - 0.5 * wk[i0] * along_c * along_c
-        dev1 = tx * gy - ty * gx
+        dev0 = _offset(wx, wy, wtx, wty, wk, spacing, x, y, i0)[0]
+        dev1 = wtx[i0] * gy - wty[i0] * gx
         dev2 = a_act - (gx * gx + gy * gy) * 2.0 * (0.5 * wk[i0])
         for r in range(3):
             res[row, 2 * steps + r] = terminal[r, 0] * dev0 + terminal[r, 1] * dev1 + terminal[r, 2] * dev2
