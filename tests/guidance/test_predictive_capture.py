@@ -169,3 +169,43 @@ def test_started_on_the_path_facing_across_it_the_law_turns_the_short_way(offset
     # = 11.2 m beside the line, plus V tau = 1.5 m of lag; the long way round would be 2 r = 20 m
     assert np.max(np.abs(res.y_m)) < 11.2 + 1.5 + 0.5
     assert abs(res.y_m[-1]) < 0.5
+
+
+@pytest.mark.parametrize("y0_m, heading_deg", [(-60.0, 0.0), (-60.0, 30.0), (-30.0, 0.0)])
+def test_far_from_a_line_the_plan_turns_in_about_as_fast_as_the_limit_allows(y0_m, heading_deg):
+    # Far from the path the pursuit aims sqrt(2) |d| ahead and its command 2 V^2 sin(eta) / L_eff
+    # is a gentle turn; the plan has to turn the vehicle in. From 60 m its residuals are tens of
+    # metres and a few centimetres of each correction, so the Gauss-Newton step was hundreds of
+    # m/s^2: clipped to the limit element by element it pointed anywhere, no fraction of it lowered
+    # the cost, and no plan was ever kept (reach 22.3 s here, from 60 m heading along the line).
+    # The step is now scaled into the limit as a whole (its direction kept).
+    # No law reaches the 1 m band sooner than a turn at the limit (radius R = V^2 / a_max) to
+    # head straight at the line and the straight flight in: (pi/2 - h0) V / a_max + (|y0| - 1 -
+    # R cos h0) / V (the turn from h0 to 90 deg gains R cos h0 towards the line); the lag (0.3 s)
+    # adds a fraction of a second to it.
+    path = LinePath(x0=-50.0, length_m=1000.0)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=5.0))
+    h0 = math.radians(heading_deg)
+    res = simulate(path, law, VehicleState(0.0, y0_m, h0, V), GuidanceParams(speed_m_s=V),
+                   model=LagModel(0.3, 5.0), t_max_s=30.0)
+    r = V * V / 5.0
+    fastest = (math.pi / 2 - h0) * V / 5.0 + (abs(y0_m) - 1.0 - r * math.cos(h0)) / V
+    reach = float(res.t_s[np.flatnonzero(np.abs(res.y_m) <= 1.0)[0]])
+    assert fastest < reach < fastest + 0.8
+    assert np.max(res.y_m) < 0.3  # and it does not dive through the line
+    assert np.max(np.abs(res.a_cmd_m_s2)) <= 5.0 + 1e-9
+
+
+def test_a_gauss_newton_step_is_kept_far_from_the_path():
+    # The first re-optimisation 60 m from a line, heading along it: the refined plan lowers the
+    # rollout cost below the pursuit's own (no plan), and stays within the limit.
+    path = LinePath(x0=-50.0, length_m=1000.0)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=5.0))
+    state = VehicleState(0.0, -60.0, 0.0, V)
+    law.step(0.0, state)
+    assert np.any(law._plan != 0.0)
+    assert np.max(np.abs(law._plan)) <= 5.0
+    looks = np.array([law._look_m])
+    with_plan = law.rollout(state, looks, law._plan[None, :], law._reference(state))
+    without = law.rollout(state, looks, np.zeros((1, law._plan.size)), law._reference(state))
+    assert np.sum(with_plan**2) < 0.98 * np.sum(without**2)
