@@ -792,9 +792,8 @@ class PredictiveGuidance:
            candidate is kept; if it is one without a plan, the plan restarts from zero (a plan
            that has gone stale or saturated can always be dropped) and step 2 waits a period.
         2. Gauss-Newton on the plan: the perturbed rows give the Jacobian of the residuals, the
-           damped normal equations a step (scaled down as a whole to the limit where it exceeds
-           it), and a second batched rollout tries the full, half and quarter step with the chosen
-           look-ahead; a step is kept only if it lowers the cost.
+           damped normal equations a step (scaled into the limit), and a second batched rollout
+           tries the full, half and quarter step; a step is kept only if it lowers the cost.
            ``refine_iterations`` > 1 repeats step 2 around the new plan.
         """
         p = self.params
@@ -830,9 +829,7 @@ class PredictiveGuidance:
                 jtj = jac.T @ jac
                 damping = 1e-6 + 1e-3 * np.trace(jtj) / m
                 step = np.linalg.solve(jtj + damping * np.eye(m), -jac.T @ r0)
-                # Scaled as a whole into the limit, its direction kept: far from the path the
-                # residuals are metres and the step hundreds of m/s^2, which the clip below cut
-                # element by element into a direction no fraction of which lowered the cost.
+                # Into the limit as a whole (far off, a clip element by element turned it anywhere).
                 step *= min(1.0, self._plan_bound / max(float(np.max(np.abs(step))), 1e-12))
                 trial = np.clip(plan + np.outer(LINE_SEARCH, step), -self._plan_bound, self._plan_bound)
                 rc = self.rollout(state, np.full(len(LINE_SEARCH), self._look_m), trial, d_ref)
@@ -905,11 +902,9 @@ class PredictiveGuidance:
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
         if self._capture_side:
-            # The quickest turn round: at the vehicle's limit (with none stated, the ideal model,
-            # at the pursuit's own bound 2 V^2 / L).
-            turn = self._a_max if math.isfinite(self._a_max) else capture_command_m_s2(
-                1, max(state.speed_m_s, MIN_SPEED_M_S), self._look_m)
-            a_cmd = self._capture_side * turn
+            # The quickest turn: at the limit (none stated, the ideal model: the pursuit's bound).
+            a_cmd = self._capture_side * (self._a_max if math.isfinite(self._a_max) else capture_command_m_s2(
+                1, max(state.speed_m_s, MIN_SPEED_M_S), self._look_m))
             correction = 0.0
             self._plan = np.zeros(p.plan_segments)
         elif ended:
