@@ -880,7 +880,7 @@ class PredictiveGuidance:
         correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
         a_cmd = min(max(float(a[0]) + correction, -self._a_max), self._a_max)
         # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
-        # is pointing away; turn round towards it at the law's bound instead of planning.
+        # is pointing away; turn round towards it at the limit instead of planning.
         behind = capture_side(state.x_m, state.y_m, state.course_rad, float(gx[0]), float(gy[0]),
                               f.tx, f.ty, self._capture_side)
         if behind and not self._capture_side:
