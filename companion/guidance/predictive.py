@@ -51,8 +51,8 @@ its feedback core and adds:
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
-Pointing away, that goal lies behind the beam: the law then turns round at its bound
-``min(a_max, 2 V^2 / L)`` and does not plan (:mod:`companion.guidance.capture`, our addition;
+Pointing away, that goal lies behind the beam: the law then turns round at the limit
+``a_max`` (with none stated, at its bound ``2 V^2 / L``) and does not plan (:mod:`companion.guidance.capture`, our addition;
 ``docs/guidance.md``, "Capture far from the path"). An
 open path is continued straight past its end, as the baselines do.
 
