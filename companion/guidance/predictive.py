@@ -52,7 +52,8 @@ its feedback core and adds:
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
 Pointing away, that goal lies behind the beam: the law then turns round at the limit
-``a_max`` (with none stated, at its bound ``2 V^2 / L``) and does not plan (:mod:`companion.guidance.capture`, our addition;
+``a_max`` (with none stated, at its bound ``2 V^2 / L``), never sharper than ``2 V^2 / l_min``
+(a copter near hover has no course to turn round from), and does not plan (:mod:`companion.guidance.capture`, our addition;
 ``docs/guidance.md``, "Capture far from the path"). An
 open path is continued straight past its end, as the baselines do.
 
@@ -902,9 +903,9 @@ class PredictiveGuidance:
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
         if self._capture_side:
-            # The quickest turn: at the limit (none stated, the ideal model: the pursuit's bound).
-            a_cmd = self._capture_side * (self._a_max if math.isfinite(self._a_max) else capture_command_m_s2(
-                1, max(state.speed_m_s, MIN_SPEED_M_S), self._look_m))
+            # At the limit (none stated: 2 V^2 / L), no sharper than 2 V^2 / l_min (near hover, course is noise).
+            look = p.l_min_m if math.isfinite(self._a_max) else self._look_m
+            a_cmd = self._capture_side * min(self._a_max, capture_command_m_s2(1, max(state.speed_m_s, MIN_SPEED_M_S), look))
             correction = 0.0
             self._plan = np.zeros(p.plan_segments)
         elif ended:

@@ -209,3 +209,21 @@ def test_a_gauss_newton_step_is_kept_far_from_the_path():
     with_plan = law.rollout(state, looks, law._plan[None, :], law._reference(state))
     without = law.rollout(state, looks, np.zeros((1, law._plan.size)), law._reference(state))
     assert np.sum(with_plan**2) < 0.98 * np.sum(without**2)
+
+
+@pytest.mark.parametrize("speed_m_s", [0.5, 2.0])
+def test_near_hover_facing_away_the_turn_round_is_the_pursuits_bound_at_its_shortest_look_ahead(speed_m_s):
+    # A real PX4 copter at the start of its path, on it, just off hover: its velocity points
+    # anywhere (here back along the path), so the goal is behind the beam. The turn round was at
+    # the limit read from the autopilot (9.8 m/s^2, its tilt limit) whatever the speed: a second of
+    # it at the start of a figure-eight doubled the flight's a_rms. It is now no sharper than the
+    # pursuit's own bound at its shortest look-ahead, 2 V^2 / l_min, by hand: 0.17 and 2.67 m/s^2
+    # with l_min = 3 m.
+    path = LinePath(-10.0, 0.0, 0.0, 500.0)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.35, a_max_m_s2=9.8))
+    out = law.step(0.0, VehicleState(0.0, 0.0, math.radians(175.0), speed_m_s))
+    assert out.extra["capture_side"] != 0
+    assert abs(out.a_cmd_m_s2) == pytest.approx(2.0 * speed_m_s**2 / 3.0, rel=1e-12)
+    # at cruise speed the same turn is at the limit: 2 V^2 / l_min = 64 m/s^2 at 9.8 m/s is above it
+    fast = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.35, a_max_m_s2=9.8))
+    assert abs(fast.step(0.0, VehicleState(0.0, 0.0, math.radians(175.0), 9.8)).a_cmd_m_s2) == pytest.approx(9.8)
