@@ -82,6 +82,7 @@ BAND_MARGIN_M = 3.0  # the nearest sample is searched within this much path, plu
 MIN_SPEED_M_S = 0.1
 FD_STEP_M_S2 = 0.05  # finite-difference step of the plan Jacobian
 LINE_SEARCH = np.array([1.0, 0.5, 0.25])  # step fractions tried (in one batch) after a Gauss-Newton step
+HORIZON_TIME_CONSTANTS = 4.0  # the shortest horizon, in closed-loop time constants (e^-4: 2 %)
 
 
 @dataclass(frozen=True)
@@ -97,10 +98,11 @@ class PredictiveParams:
     a_max_m_s2 : lateral-acceleration limit of the vehicle, > 0 (``math.inf``: none).
     l_min_m, l_max_m : bounds of the look-ahead distance the search may choose, 0 < min <= max.
     n_candidates : look-ahead distances tried per re-optimisation (geometric spacing), >= 1.
-    horizon_s : rollout horizon, > 0.
+    horizon_s : rollout horizon, > 0; longer at a large lambda (see :meth:`horizon`).
     rollout_dt_s : rollout integration step, > 0.
     reopt_period_s : time between re-optimisations, > 0.
-    plan_segments : number of piecewise-constant acceleration corrections over the horizon, >= 1.
+    plan_segments : number of piecewise-constant acceleration corrections over ``horizon_s``,
+        >= 1 (as many more as a longer horizon takes at the same length).
     refine_iterations : Gauss-Newton refinements of the corrections per re-optimisation, >= 0
         (0: the look-ahead search alone).
     wind_x_m_s, wind_y_m_s : known steady wind, ENU, used by the rollouts.
@@ -169,6 +171,20 @@ class PredictiveParams:
     def capture_tc_s(self) -> float:
         """Time constant of the capture reference (s); 0 when it is disabled."""
         return float(self.capture_tc_scale * self.lambda_s4 ** 0.25)
+
+    def horizon(self) -> tuple[float, int]:
+        """The rollout horizon (s) and its number of plan segments (each about ``horizon_s / plan_segments``).
+
+        ``horizon_s``, or, if longer, ``HORIZON_TIME_CONSTANTS`` closed-loop time constants of the
+        cost, ``sqrt(2) lambda^(1/4)`` (the linear-quadratic regulator of ``d^2 + lambda a^2`` on a
+        double integrator has its poles at ``(-1 +- i) / (sqrt(2) lambda^(1/4))``): from lambda
+        0.61 s^4 on. A plan whose horizon ends sooner eases off the corrections whose effect
+        falls past it; a smooth setting cut the bends of a figure-eight by metres without flying
+        less acceleration.
+        """
+        horizon = max(self.horizon_s, HORIZON_TIME_CONSTANTS * SQRT2 * self.lambda_s4 ** 0.25)
+        segments = max(self.plan_segments, int(round(horizon / self.horizon_s * self.plan_segments)))
+        return horizon, segments
 
     def candidates_m(self) -> np.ndarray:
         """The look-ahead distances the search tries (geometric from l_min_m to l_max_m)."""
@@ -630,14 +646,15 @@ class PredictiveGuidance:
         self.params = params if params is not None else PredictiveParams()
         p = self.params
         self._candidates = p.candidates_m()
-        self._steps = max(1, int(round(p.horizon_s / p.rollout_dt_s)))
-        self._segment_s = p.horizon_s / p.plan_segments
+        self._horizon_s, self._segments = p.horizon()
+        self._steps = max(1, int(round(self._horizon_s / p.rollout_dt_s)))
+        self._segment_s = self._horizon_s / self._segments
         # rollout step k -> plan segment
         self._seg_of_step = np.minimum(
-            (np.arange(self._steps) * p.rollout_dt_s / self._segment_s).astype(int), p.plan_segments - 1)
+            (np.arange(self._steps) * p.rollout_dt_s / self._segment_s).astype(int), self._segments - 1)
         self._s_hint: float | None = None
         self._look_m = float(self._candidates[len(self._candidates) // 2])
-        self._plan = np.zeros(p.plan_segments)  # acceleration corrections, one per segment
+        self._plan = np.zeros(self._segments)  # acceleration corrections, one per segment
         # A correction larger than the vehicle's limit (or, with none, than the pursuit's largest
         # command at the shortest look-ahead at 10 m/s) can only saturate: bound the plan there.
         self._plan_bound = p.a_max_m_s2 if p.a_max_m_s2 < math.inf else 2.0 * 10.0**2 / p.l_min_m
@@ -748,10 +765,9 @@ class PredictiveGuidance:
 
     def _shifted_plan(self, t_s: float) -> np.ndarray:
         """The previous plan re-read from ``t_s`` on (segments past its horizon decay to zero)."""
-        p = self.params
-        mids = t_s - self._plan_t0 + (np.arange(p.plan_segments) + 0.5) * self._segment_s
+        mids = t_s - self._plan_t0 + (np.arange(self._segments) + 0.5) * self._segment_s
         idx = np.floor(mids / self._segment_s).astype(int)
-        out = np.where(idx < p.plan_segments, self._plan[np.minimum(idx, p.plan_segments - 1)], 0.0)
+        out = np.where(idx < self._segments, self._plan[np.minimum(idx, self._segments - 1)], 0.0)
         return out
 
     def _reference(self, state: VehicleState) -> np.ndarray | None:
@@ -773,7 +789,7 @@ class PredictiveGuidance:
         the horizon (and a far vehicle's look-ahead) reaches."""
         p = self.params
         v_g = max(state.speed_m_s, MIN_SPEED_M_S)
-        reach = v_g * (p.horizon_s + p.reopt_period_s) * 1.3 + 1.5 * max(p.l_max_m, SQRT2 * abs(crosstrack_m)) + 5.0
+        reach = v_g * (self._horizon_s + p.reopt_period_s) * 1.3 + 1.5 * max(p.l_max_m, SQRT2 * abs(crosstrack_m)) + 5.0
         self._s_win, self._d_win = s_proj_m, crosstrack_m
         return _Window(self.path, s_proj_m, reach)
 
@@ -861,7 +877,7 @@ class PredictiveGuidance:
             self._lag_s = monitor.lag_s
             self._a_max = min(monitor.a_max_m_s2, p.a_max_m_s2)
             if monitor.fallback:
-                self._plan = np.zeros(p.plan_segments)
+                self._plan = np.zeros(self._segments)
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
         self._s_hint = f.s_m
         self._s_win, self._d_win = f.s_m, f.crosstrack_m
@@ -877,7 +893,7 @@ class PredictiveGuidance:
             self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
             np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff,
             self._lag_s, self._tick_band(state))
-        seg = min(int((t_s - self._plan_t0) / self._segment_s), p.plan_segments - 1)
+        seg = min(int((t_s - self._plan_t0) / self._segment_s), self._segments - 1)
         correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
         a_cmd = min(max(float(a[0]) + correction, -self._a_max), self._a_max)
         # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
@@ -907,7 +923,7 @@ class PredictiveGuidance:
             look = p.l_min_m if math.isfinite(self._a_max) else self._look_m
             a_cmd = self._capture_side * min(self._a_max, capture_command_m_s2(1, max(state.speed_m_s, MIN_SPEED_M_S), look))
             correction = 0.0
-            self._plan = np.zeros(p.plan_segments)
+            self._plan = np.zeros(self._segments)
         elif ended:
             self._next_reopt_t = -math.inf  # plan afresh on the next tick
         self._last_cmd = a_cmd
