@@ -878,7 +878,7 @@ class PredictiveGuidance:
             self._a_max = min(monitor.a_max_m_s2, p.a_max_m_s2)
             if monitor.fallback:
                 self._plan = np.zeros(self._segments)
-        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
+        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint, state.course_rad)
         self._s_hint = f.s_m
         self._s_win, self._d_win = f.s_m, f.crosstrack_m
         reoptimised = False

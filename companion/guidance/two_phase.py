@@ -58,6 +58,7 @@ from companion.guidance.corrector import corrector_command
 from companion.guidance.l1 import l1_command
 from companion.guidance.midcourse import MidcourseGuidance, MidcoursePlan
 from companion.guidance.optimiser import GainOptimiser, ratio_from_gains
+from companion.guidance.path_frame import first_projection_s
 from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
 from companion.guidance.types import (
     SCHEDULE_TOLERANCE_S,
@@ -189,7 +190,7 @@ class TwoPhaseGuidance:
             return self._predictive_step(t_s, state)
         path, p = self.path, self.params
         x, y, course, V = state.x_m, state.y_m, state.course_rad, state.speed_m_s
-        s_proj = path.project(x, y, self._s_proj)
+        s_proj = path.project(x, y, self._s_proj) if self._s_proj is not None else first_projection_s(path, x, y, course)
         self._s_proj = s_proj
         px, py, tx, ty, _ = path.frame(s_proj)
         dx, dy = x - px, y - py

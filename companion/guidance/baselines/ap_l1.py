@@ -117,7 +117,7 @@ class ApL1Guidance:
         v = max(state.speed_m_s, MIN_GROUND_SPEED_M_S)
         l1 = p.l1_m(v)
         dt = self._integrator_dt_s(t_s)
-        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
+        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint, state.course_rad)
         self._s_hint = f.s_m
 
         nu2 = wrap_pi(f.tangent_rad - state.course_rad)  # velocity -> tangent at the closest point

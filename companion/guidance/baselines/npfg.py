@@ -141,7 +141,7 @@ class NpfgGuidance:
         ax, ay = gx - wx, gy - wy
         airspeed = math.hypot(ax, ay)
         wind_speed = math.hypot(wx, wy)
-        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
+        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint, state.course_rad)
         self._s_hint = f.s_m
         e = f.crosstrack_m
         tx, ty = f.tx, f.ty

@@ -68,7 +68,7 @@ class PurePursuitGuidance:
         p = self.params
         v = state.speed_m_s
         ld = p.lookahead_m + p.speed_gain_s * v
-        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint)
+        f = path_frame(self.path, state.x_m, state.y_m, self._s_hint, state.course_rad)
         self._s_hint = f.s_m
         goal = goal_point(self.path, state.x_m, state.y_m, ld, f.s_m)
         if goal is None:  # far from the path: the goal search stays at the closest point
