@@ -230,13 +230,13 @@ def make_law(law: str, setting: float, sc: ScenarioSpec, model: ModelSpec):
 
 
 # ----------------------------------------------------------------------------- one run
-def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray, course0_rad: float | None = None) -> np.ndarray:
+def true_crosstrack_m(path, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
     """Signed distance to the closest path point along a trajectory (projection kept continuous,
-    the first one along the start course ``course0_rad``):
+    the first one along the first step):
     :func:`companion.sim.optimal.crosstrack_sequential_m`, the one measurement the bound uses too."""
     from companion.sim.optimal import crosstrack_sequential_m
 
-    return crosstrack_sequential_m(path, x_m, y_m, course0_rad)[0]
+    return crosstrack_sequential_m(path, x_m, y_m)[0]
 
 
 def fly_task(task: Task):
@@ -270,7 +270,7 @@ def run_one(task: Task) -> dict:
     t0 = time.perf_counter()
     path, res = fly_task(task)
     wall = time.perf_counter() - t0
-    d = true_crosstrack_m(path, res.x_m, res.y_m, task.spec.heading_rad)
+    d = true_crosstrack_m(path, res.x_m, res.y_m)
     reached = np.flatnonzero(np.abs(d) <= REACH_TOL_M)
     row = {"scenario": scenario_name, "model": model.name, "law": law, "setting": setting,
            "knob": KNOBS[law]}

@@ -211,20 +211,29 @@ def _states(problem: OptimalProblem, a_flown: np.ndarray) -> tuple[np.ndarray, n
 
 
 # ----------------------------------------------------------------------------- cross-track
-def crosstrack_sequential_m(path: Path, x_m: np.ndarray, y_m: np.ndarray,
-                            course0_rad: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _first_course(x_m: np.ndarray, y_m: np.ndarray) -> float | None:
+    """The direction of a trajectory's first step (None if it has none): the course the laws
+    took their first projection along."""
+    if x_m.size < 2 or (x_m[1] == x_m[0] and y_m[1] == y_m[0]):
+        return None
+    return math.atan2(float(y_m[1] - y_m[0]), float(x_m[1] - x_m[0]))
+
+
+def crosstrack_sequential_m(path: Path, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance to the closest path point along a trajectory, projection kept continuous
     (each tick's search starts from the previous tick's projection): ``(d_m, s_m)``.
 
     The tracking bench's measurement, point by point with :func:`~companion.guidance.path_frame.path_frame`;
-    the first point's projection with the start course ``course0_rad``, as the laws take theirs (at a
-    crossing of a closed path, the branch flown along: :func:`~companion.guidance.path_frame.first_projection_s`).
+    the first point's projection along the trajectory's first step, as the laws take theirs along
+    their course (at a crossing of a closed path, the branch flown along:
+    :func:`~companion.guidance.path_frame.first_projection_s`).
     """
     d = np.empty(x_m.size)
     s = np.empty(x_m.size)
     hint: float | None = None
+    course0 = _first_course(x_m, y_m)
     for i in range(x_m.size):
-        f = path_frame(path, float(x_m[i]), float(y_m[i]), hint, course0_rad)
+        f = path_frame(path, float(x_m[i]), float(y_m[i]), hint, course0)
         hint = f.s_m
         s[i], d[i] = f.s_m, f.crosstrack_m
     return d, s
@@ -312,8 +321,8 @@ def _newton_from_hints(path: Path, x: np.ndarray, y: np.ndarray, hint: np.ndarra
     return result, np.isfinite(result)
 
 
-def _crosstrack_newton(path: Path, x: np.ndarray, y: np.ndarray, s_hint: np.ndarray,
-                       course0_rad: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _crosstrack_newton(path: Path, x: np.ndarray, y: np.ndarray,
+                       s_hint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The bench's projection (:func:`crosstrack_sequential_m`), vectorised: ``(d, s, nx, ny)``,
     ``n`` the path's left normal at the closest point.
 
@@ -326,7 +335,7 @@ def _crosstrack_newton(path: Path, x: np.ndarray, y: np.ndarray, s_hint: np.ndar
     satisfies the bench's recursion from the same first tick, so the result is the bench's.
     After ``_PROJECTION_PASSES`` passes without that, the ticks are projected one by one.
     """
-    s_first = first_projection_s(path, float(x[0]), float(y[0]), course0_rad)
+    s_first = first_projection_s(path, float(x[0]), float(y[0]), _first_course(x, y))
     s = np.asarray(s_hint, dtype=float).copy()
     todo = np.arange(1, x.size)  # ticks whose predecessor changed
     s[0] = s_first
@@ -344,7 +353,7 @@ def _crosstrack_newton(path: Path, x: np.ndarray, y: np.ndarray, s_hint: np.ndar
         if not todo.size:
             break
     else:
-        _, s = crosstrack_sequential_m(path, x, y, course0_rad)
+        _, s = crosstrack_sequential_m(path, x, y)
     px, py, tx, ty, _ = path.frame_array(s)
     d = tx * (y - py) - ty * (x - px)
     return d, s, -ty, tx
@@ -383,11 +392,11 @@ def cost_and_gradient(problem: OptimalProblem, lambda_s4: float, a_cmd_m_s2: np.
     a = flown_acceleration(p, u)
     psi, x, y, terms = _states(p, a)
     if s_hint_m is None:
-        d, s = crosstrack_sequential_m(p.path, x[:n], y[:n], p.start.course_rad)
+        d, s = crosstrack_sequential_m(p.path, x[:n], y[:n])
         f = p.path.frame_array(s)
         nx, ny = -f[3], f[2]
     else:
-        d, s, nx, ny = _crosstrack_newton(p.path, x[:n], y[:n], s_hint_m, p.start.course_rad)
+        d, s, nx, ny = _crosstrack_newton(p.path, x[:n], y[:n], s_hint_m)
     j = float(np.mean(d * d) + lambda_s4 * np.mean(a * a))
     # Reverse pass. gx[k] = dJ/dx_k for k < n (x_0 is fixed).
     gx = 2.0 / n * d * nx
@@ -424,7 +433,7 @@ def trajectory(problem: OptimalProblem, a_cmd_m_s2: Sequence[float] | np.ndarray
         raise ValueError(f"a_cmd_m_s2: expected {problem.n_ticks} commands, got shape {u.shape}")
     a = flown_acceleration(problem, u)
     psi, x, y, _ = _states(problem, a)
-    d, s = crosstrack_sequential_m(problem.path, x[: problem.n_ticks], y[: problem.n_ticks], problem.start.course_rad)
+    d, s = crosstrack_sequential_m(problem.path, x[: problem.n_ticks], y[: problem.n_ticks])
     return Trajectory(x, y, psi, a, d, s)
 
 

@@ -45,12 +45,15 @@ def test_the_first_projection_is_the_branch_flown_along(course):
 def test_the_measurement_follows_the_branch_flown_along():
     # 10 m straight along the DOWN branch from the crossing: within a third-order term of it
     # (no curvature there), and 10 sin(53.13 deg) = 8.0 m from the UP branch.
+    # The measurement takes the branch along the trajectory's first step.
     path = eight()
     t = np.linspace(0.0, 2.0, 101)
     x, y = V * t * math.cos(DOWN), V * t * math.sin(DOWN)
-    along, _ = crosstrack_sequential_m(path, x, y, DOWN)
+    along, _ = crosstrack_sequential_m(path, x, y)
     assert np.max(np.abs(along)) < 0.3
-    across, _ = crosstrack_sequential_m(path, x, y, UP)
+    # the same flight, its first step along the UP branch: measured against that branch
+    x[1], y[1] = 0.1 * math.cos(UP), 0.1 * math.sin(UP)
+    across, _ = crosstrack_sequential_m(path, x, y)
     assert abs(across[-1]) == pytest.approx(10.0 * math.sin(2.0 * math.atan(0.5)), abs=0.3)
 
 
@@ -70,5 +73,5 @@ def test_every_law_started_at_the_crossing_flies_on_along_its_branch(course):
     for name, law in _laws(path):
         res = simulate(path, law, VehicleState(0.0, 0.0, course, V), GuidanceParams(speed_m_s=V),
                        model=LagModel(0.2, 5.0), t_max_s=10.0)
-        d, _ = crosstrack_sequential_m(path, res.x_m, res.y_m, course)
+        d, _ = crosstrack_sequential_m(path, res.x_m, res.y_m)
         assert np.max(np.abs(d)) < 1.0, name

@@ -5,7 +5,6 @@ acceleration for it."""
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
