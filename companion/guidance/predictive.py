@@ -179,7 +179,7 @@ class PredictiveParams:
         cost, ``sqrt(2) lambda^(1/4)`` (the linear-quadratic regulator of ``d^2 + lambda a^2`` on a
         double integrator has its poles at ``(-1 +- i) / (sqrt(2) lambda^(1/4))``): from lambda
         0.61 s^4 on. A plan whose horizon ends sooner eases off the corrections whose effect
-        falls past it; a smooth setting cut the bends of a figure-eight by metres without flying
+        falls past it; a smooth setting drifted decimetres off a figure-eight without flying
         less acceleration.
         """
         horizon = max(self.horizon_s, HORIZON_TIME_CONSTANTS * SQRT2 * self.lambda_s4 ** 0.25)
