@@ -37,7 +37,7 @@ def test_the_default_horizon_holds_up_to_lambda_0_61():
 
 
 def test_at_a_large_lambda_the_plan_trades_error_for_acceleration(monkeypatch):
-    # The bench's figure-eight (lag model) at lambda 3. With the horizon held at 5 s (1.9 time
+    # The bench's figure-eight (lag model) at lambda 3. With the horizon held at 5 s (2.7 time
     # constants) the plan eased off the corrections whose effect fell past it: the vehicle drifted
     # a quarter of a metre off the path and flew no less acceleration than at lambda 1.
     task = tracking.Task(tracking.named_spec("figure_eight"), tracking.ModelSpec("lag"), "predictive", 3.0)
