@@ -8,6 +8,7 @@ collects the few derived quantities they share, so that each law file reads like
   (positive when the vehicle is LEFT of the path, i.e. on the side the left normal points to);
 - :func:`first_projection_s`: where a vehicle should join a closed path that comes back near
   itself (the branch it is flying along, not merely the nearest);
+- :func:`frame_samples`: point, tangent and curvature at many arc lengths at once;
 - :func:`lookahead_s`: the first arc length forward of ``s_from`` whose point lies at Euclidean
   distance ``L`` from the vehicle (the look-ahead point of L1 guidance and pure pursuit);
 - :func:`goal_point`: the same point, continuing an open path straight past its end;
@@ -108,6 +109,19 @@ def path_frame(path: PathLike, x_m: float, y_m: float, s_hint_m: float | None,
     return PathFrame(s, px, py, tx, ty, float(k), d)
 
 
+def frame_samples(path: PathLike, s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Point, unit tangent and curvature at the arc lengths ``s_m`` (in ``[0, length_m]``): arrays
+    ``(x, y, tx, ty, curvature)``, by the path's ``frame_array`` when it has one, else query by query."""
+    frame_array = getattr(path, "frame_array", None)
+    if frame_array is not None:
+        x, y, tx, ty, k = frame_array(s_m)
+        return x, y, tx, ty, k
+    pts = np.array([_xy(path.point(v)) for v in s_m], dtype=float)
+    tng = np.array([_xy(path.tangent(v)) for v in s_m], dtype=float)
+    k = np.array([float(path.curvature(v)) for v in s_m], dtype=float)
+    return pts[:, 0], pts[:, 1], tng[:, 0], tng[:, 1], k
+
+
 #: A branch of a closed path within this distance of the nearest counts as near as it (at a crossing).
 BRANCH_TIE_M = 1.0
 
@@ -141,13 +155,7 @@ def first_projection_s(path: PathLike, x_m: float, y_m: float, course_rad: float
     if course_rad is None or not path.closed or not length > 0.0:
         return s0
     s = np.linspace(0.0, length, max(int(math.ceil(length)), 8), endpoint=False)
-    frame_array = getattr(path, "frame_array", None)
-    if frame_array is not None:
-        px, py, tx, ty, _ = frame_array(s)
-    else:
-        pts = np.array([_xy(path.point(v)) for v in s])
-        tng = np.array([_xy(path.tangent(v)) for v in s])
-        px, py, tx, ty = pts[:, 0], pts[:, 1], tng[:, 0], tng[:, 1]
+    px, py, tx, ty, _ = frame_samples(path, s)
     dist = np.hypot(px - x_m, py - y_m)
     near = np.flatnonzero((dist <= np.roll(dist, 1)) & (dist <= np.roll(dist, -1))
                           & (dist <= float(np.min(dist)) + BRANCH_TIE_M))

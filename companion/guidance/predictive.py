@@ -72,7 +72,7 @@ import numpy as np
 
 from companion.guidance import rollout_kernel
 from companion.guidance.capture import capture_command_m_s2, capture_side
-from companion.guidance.path_frame import PathLike, frame_output, path_frame
+from companion.guidance.path_frame import PathLike, frame_output, frame_samples, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
 SQRT2 = math.sqrt(2.0)
@@ -210,13 +210,8 @@ class _Window:
             beyond = s[s > total] - total  # continued straight along the end tangent
             s = s[s <= total]
             s = np.clip(s, 0.0, total)
-        if hasattr(path, "frame_array"):
-            x, y, tx, ty, k = path.frame_array(s)
-        else:  # any object with the scalar Path queries (e.g. an exact circle in the tests)
-            pts = np.array([path.point(v) for v in s], dtype=float)
-            tng = np.array([path.tangent(v) for v in s], dtype=float)
-            x, y, tx, ty = pts[:, 0], pts[:, 1], tng[:, 0], tng[:, 1]
-            k = np.array([path.curvature(v) for v in s], dtype=float)
+        # any object with the scalar Path queries too (e.g. an exact circle in the tests)
+        x, y, tx, ty, k = frame_samples(path, s)
         if beyond.size:
             ex, ey = (float(c) for c in path.point(total))
             etx, ety = (float(c) for c in path.tangent(total))
