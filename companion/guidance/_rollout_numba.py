@@ -79,13 +79,16 @@ def _pursue(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk
     w2 = vv * 2.0
     a = w2 * math.sin(eta) / max(math.hypot(tgx, tgy), 1e-6)
     if cff != 0.0:  # the curvature feed-forward at the closest point, read lead seconds ahead
-        cx = goal_x - (wx[i0] + along * tx)
-        cy = goal_y - (wy[i0] + along * ty)
+        along_c = min(max(along, -spacing), spacing)
+        bow = 0.5 * wk[i0] * along_c * along_c  # P on the osculating circle, its tangent turned by kappa along
+        cx = goal_x - (wx[i0] + along * tx) + bow * ty
+        cy = goal_y - (wy[i0] + along * ty) - bow * tx
         pos = min(max(i0 + (along + v * lead) / spacing, 0.0), n - 1.0)
         lo = min(int(pos), n - 2) if n > 1 else 0
         kappa = wk[lo] + (pos - lo) * (wk[min(lo + 1, n - 1)] - wk[lo])
         length = max(math.hypot(cx, cy), 1e-6)
-        sin_eta_p = (tx * cy - ty * cx) / length
+        turn = wk[i0] * along_c
+        sin_eta_p = (tx * cy - ty * cx - turn * (tx * cx + ty * cy)) / length
         a = a - cff * (w2 * sin_eta_p / length - vv * kappa)
     return a, d
 

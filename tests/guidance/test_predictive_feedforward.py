@@ -36,6 +36,21 @@ def test_on_a_circle_both_forms_command_v2_over_r(ff):
     assert one(win, 20.0, 0.0, math.pi / 2, 8.0, ff) == pytest.approx(1.25, rel=2e-3)
 
 
+@pytest.mark.parametrize("look_m", [3.0, 8.0])
+def test_on_a_circle_between_samples_the_command_is_still_v2_over_r(look_m):
+    # The window samples the path every metre; a vehicle on a 30 m circle, tangent, anywhere
+    # between two samples, still has V^2/R = 25/30 m/s^2 to fly (the chord geometry is exact on
+    # the arc). With the nearest sample's tangent line taken for P's tangent and place, the
+    # feed-forward term was off by 2 V^2 kappa along / L: 0.28 m/s^2 at 0.5 m along and L 3 m, a
+    # sawtooth every sample passed (P on the tangent line alone, kappa along^2 / 2 off the arc: 0.015).
+    path = circle(30.0)
+    win = _Window(path, 0.0, 60.0)
+    for s_m in np.linspace(0.0, 1.0, 11):
+        u = s_m / 30.0
+        cmd = one(win, 30.0 * math.cos(u), 30.0 * math.sin(u), u + math.pi / 2, look_m, 1.0)
+        assert cmd == pytest.approx(V * V / 30.0, abs=1e-3), s_m
+
+
 def test_feedforward_removes_the_early_turn_in_before_a_bend():
     # 40 m straight east, then a 20 m radius left arc (a 3 m curvature ramp around s = 40 m).
     path = segments_path((0.0, 0.0), 0.0, [("line", 40.0, 0.0), ("arc", 20.0, math.pi / 2)], 3.0,
