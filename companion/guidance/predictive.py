@@ -127,7 +127,7 @@ class PredictiveParams:
     l_max_m: float = 30.0
     n_candidates: int = 8
     horizon_s: float = 5.0
-    rollout_dt_s: float = 0.1
+    rollout_dt_s: float = 0.2
     reopt_period_s: float = 0.2
     plan_segments: int = 10
     refine_iterations: int = 1

@@ -1,7 +1,7 @@
 """The predictive law's batched rollouts as compiled loops (numba), when numba is installed.
 
 :meth:`companion.guidance.predictive.PredictiveGuidance.rollout` flies a few dozen candidate rows
-through 50 steps of the pursuit and the vehicle model. In numpy each step is some ninety calls on
+through 25 steps of the pursuit and the vehicle model. In numpy each step is some ninety calls on
 arrays of a few dozen numbers, and the interpreter's cost per call is most of a re-optimisation's
 2-5 ms. :mod:`companion.guidance._rollout_numba` runs the same arithmetic as scalar loops
 compiled by numba, so the results agree with the numpy rollouts to rounding (the transcendental
