@@ -21,17 +21,18 @@ def _compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 @_compiled
-def _nearest(wx: np.ndarray, wy: np.ndarray, x: float, y: float, lo_j: int, hi_j: int, r2: np.ndarray) -> int:
-    """``_project``'s search: fills ``r2`` with the squared distance to every window sample and
-    returns the first nearest one among the samples ``lo_j .. hi_j`` (the band)."""
+def _nearest(wx: np.ndarray, wy: np.ndarray, x: float, y: float, lo_j: int, hi_j: int) -> int:
+    """``_project``'s search: the first nearest window sample among ``lo_j .. hi_j`` (the band).
+    Only the band is measured: the samples outside it cannot be chosen (the goal search measures
+    its own, from the nearest sample on)."""
     best = math.inf
     i0 = lo_j
-    for j in range(wx.shape[0]):
+    for j in range(lo_j, hi_j + 1):
         dx = wx[j] - x
         dy = wy[j] - y
-        r2[j] = dx * dx + dy * dy
-        if lo_j <= j <= hi_j and r2[j] < best:
-            best = r2[j]
+        r2 = dx * dx + dy * dy
+        if r2 < best:
+            best = r2
             i0 = j
     return i0
 
@@ -52,7 +53,7 @@ def _offset(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk
 @_compiled
 def _pursue(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk: np.ndarray, spacing: float,
             x: float, y: float, course: float, v: float, look: float, cff: float, lead: float, i0: int,
-            r2: np.ndarray) -> tuple[float, float]:
+            ) -> tuple[float, float]:
     """``_project`` from the nearest sample ``i0`` on, and ``_pursue``: the command and the
     cross-track error of one row."""
     n = wx.shape[0]
@@ -60,14 +61,18 @@ def _pursue(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk
     d, along = _offset(wx, wy, wtx, wty, wk, spacing, x, y, i0)
     # the goal: the first sample from i0 on at L_eff or more, interpolated from the one before
     l_eff = max(look, math.sqrt(2.0) * abs(d))
+    # (the distances measured as far as the goal only, in the numpy rollouts' arithmetic)
     jg = -1
+    r_j = r_jm = 0.0
     for j in range(i0, n):
-        if math.sqrt(r2[j]) >= l_eff:
+        dx = wx[j] - x
+        dy = wy[j] - y
+        r_jm, r_j = r_j, math.sqrt(dx * dx + dy * dy)
+        if r_j >= l_eff:
             jg = j
             break
     frac = 1.0
     if jg > i0:
-        r_j, r_jm = math.sqrt(r2[jg]), math.sqrt(r2[jg - 1])
         frac = (l_eff - r_jm) / max(r_j - r_jm, 1e-12)
     idx = jg if jg >= 0 else n - 1
     b = max(idx - 1, 0)
@@ -105,7 +110,6 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
     cost-to-go factor ``terminal``, :func:`companion.guidance.predictive.cost_to_go_factor`)."""
     rows, steps, n = look.shape[0], step_plans.shape[0], wx.shape[0]
     res = np.empty((rows, 2 * steps + 3))
-    r2 = np.empty(n)
     windy = wind_x != 0.0 or wind_y != 0.0
     for row in range(rows):
         x, y, h, a_act, centre = x0, y0, h0, a0, centre0
@@ -114,9 +118,9 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
             if windy:
                 gx, gy = gx + wind_x, gy + wind_y
             lo_j, hi_j = (0, n - 1) if whole else (max(centre - back, 0), min(centre + ahead, n - 1))
-            centre = _nearest(wx, wy, x, y, lo_j, hi_j, r2)
+            centre = _nearest(wx, wy, x, y, lo_j, hi_j)
             a, d = _pursue(wx, wy, wtx, wty, wk, spacing, x, y, math.atan2(gy, gx),
-                           max(math.hypot(gx, gy), min_speed), look[row], cff, lead, centre, r2)
+                           max(math.hypot(gx, gy), min_speed), look[row], cff, lead, centre)
             u = a + step_plans[step, row]
             if limit < math.inf:
                 u = min(max(u, -limit), limit)
@@ -135,7 +139,7 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
         if windy:
             gx, gy = gx + wind_x, gy + wind_y
         lo_j, hi_j = (0, n - 1) if whole else (max(centre - back, 0), min(centre + ahead, n - 1))
-        i0 = _nearest(wx, wy, x, y, lo_j, hi_j, r2)
+        i0 = _nearest(wx, wy, x, y, lo_j, hi_j)
         dev0 = _offset(wx, wy, wtx, wty, wk, spacing, x, y, i0)[0]
         dev1 = wtx[i0] * gy - wty[i0] * gx
         dev2 = a_act - (gx * gx + gy * gy) * 2.0 * (0.5 * wk[i0])
