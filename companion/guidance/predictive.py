@@ -222,19 +222,33 @@ class _Window:
             k = np.concatenate([k, np.zeros(beyond.size)])
         self.x, self.y, self.tx, self.ty, self.k = x, y, tx, ty, k
         self.index = np.arange(self.x.size)
-        # The rollouts project onto the window every step, where the cost is the number of numpy
-        # calls: what depends on the window alone is stacked here once, so that one fancy index
-        # reads it all. ``xy`` broadcasts against the vehicles' positions; ``at_nearest[:, i]`` is
-        # the position, the tangent, the tangent swapped and half the curvature of sample i;
-        # ``at_goal[:, j]`` the sample before j (j itself for the first) and the step from it to j;
-        # ``at_kappa[:, i]`` the curvature and its step to the next sample (none for the last).
-        before = np.maximum(self.index - 1, 0)
-        after = np.minimum(self.index + 1, x.size - 1)
-        self.xy = np.stack([x, y])[:, None, :]
-        self.at_nearest = np.stack([x, y, tx, ty, ty, tx, 0.5 * k])
-        self.at_goal = np.stack([x[before], y[before], x - x[before], y - y[before]])
-        self.at_kappa = np.stack([k, k[after] - k])
         self._from: np.ndarray | None = None
+
+    # The numpy rollouts project onto the window every step, where the cost is the number of numpy
+    # calls: what depends on the window alone is stacked once, so that one fancy index reads it
+    # all (built on first use: the compiled rollouts and tick never read them). ``xy`` broadcasts
+    # against the vehicles' positions; ``at_nearest[:, i]`` is the position, the tangent, the
+    # tangent swapped and half the curvature of sample i; ``at_goal[:, j]`` the sample before j (j
+    # itself for the first) and the step from it to j; ``at_kappa[:, i]`` the curvature and its
+    # step to the next sample (none for the last).
+    @functools.cached_property
+    def xy(self) -> np.ndarray:
+        return np.stack([self.x, self.y])[:, None, :]
+
+    @functools.cached_property
+    def at_nearest(self) -> np.ndarray:
+        return np.stack([self.x, self.y, self.tx, self.ty, self.ty, self.tx, 0.5 * self.k])
+
+    @functools.cached_property
+    def at_goal(self) -> np.ndarray:
+        x, y = self.x, self.y
+        before = np.maximum(self.index - 1, 0)
+        return np.stack([x[before], y[before], x - x[before], y - y[before]])
+
+    @functools.cached_property
+    def at_kappa(self) -> np.ndarray:
+        after = np.minimum(self.index + 1, self.x.size - 1)
+        return np.stack([self.k, self.k[after] - self.k])
 
     def index_of(self, s_m: float) -> int:
         """The sample at arc length ``s_m`` (the law's own projection), clipped to the window."""
@@ -333,6 +347,14 @@ class _Band:
         # The numpy rollouts search every step: a table, one row per centre, 0 inside the band and
         # inf outside, made on their first search (the compiled rollouts never search here).
         self._tabled = not self.whole and self.centre.size > 1 and n <= 600
+
+    def limits(self, row: int) -> tuple[int, int]:
+        """The first and last sample of row ``row``'s band (the compiled loops search those)."""
+        n = self._win.x.size
+        if self.whole:
+            return 0, n - 1
+        c = int(self.centre[row])
+        return max(c - self.back, 0), min(c + self.ahead, n - 1)
 
     def nearest(self, r2: np.ndarray) -> np.ndarray:
         """The nearest sample of each row within its band; the band moves there."""
@@ -717,7 +739,7 @@ class PredictiveGuidance:
         to_go = _cost_to_go_cached(self._lag_s, p.lambda_s4) if p.terminal_cost else _NO_COST_TO_GO
         band = _band(win, np.full(k, win.index_of(self._s_win)), v_air, p.rollout_dt_s, self._d_win)
         if self._kernel is not None and self.compiled:
-            return self._kernel(
+            return self._kernel.rollout(
                 win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m), float(state.y_m),
                 heading, float(self._a_hat), np.ascontiguousarray(look_m, dtype=float),
                 np.ascontiguousarray(step_plans, dtype=float), v_air, float(p.wind_x_m_s), float(p.wind_y_m_s),
@@ -782,12 +804,18 @@ class PredictiveGuidance:
             return None
         win = self._win
         assert win is not None  # set by reoptimise() before any rollout
-        i0, d0, _ = _nearest(win, np.array([state.x_m]), np.array([state.y_m]), self._tick_band(state))
-        i = int(i0[0])
+        band = self._tick_band(state)
+        if self._kernel is not None and self.compiled:
+            lo, hi = band.limits(0)
+            i, d0 = self._kernel.project(win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m),
+                                         float(state.y_m), lo, hi)
+        else:
+            i0, d, _ = _nearest(win, np.array([state.x_m]), np.array([state.y_m]), band)
+            i, d0 = int(i0[0]), float(d[0])
         vx = state.speed_m_s * math.cos(state.course_rad)
         vy = state.speed_m_s * math.sin(state.course_rad)
         rate = float(win.tx[i] * vy - win.ty[i] * vx)  # ground velocity across the path, left positive
-        return capture_reference(float(d0[0]), rate, tc, np.arange(self._steps) * self.params.rollout_dt_s)
+        return capture_reference(d0, rate, tc, np.arange(self._steps) * self.params.rollout_dt_s)
 
     def _window(self, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> _Window:
         """The local path samples the pursuit and the rollouts use: from the projection, as far as
@@ -804,6 +832,22 @@ class PredictiveGuidance:
         win = self._win
         assert win is not None
         return _band(win, np.array([win.index_of(self._s_win)]), state.speed_m_s, 0.0, self._d_win)
+
+    def _pursuit(self, state: VehicleState) -> tuple[float, float, float, float]:
+        """The tick's pursuit command (not clipped), L_eff and goal (compiled when the rollouts are)."""
+        p, win, band = self.params, self._win, self._tick_band(state)
+        assert win is not None
+        if self._kernel is not None and self.compiled:
+            lo, hi = band.limits(0)
+            a, _, l_eff, gx, gy = self._kernel.pursuit(
+                win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m), float(state.y_m),
+                float(state.course_rad), max(float(state.speed_m_s), MIN_SPEED_M_S), float(self._look_m),
+                float(p.curvature_ff), float(self._lag_s), lo, hi)
+            return a, l_eff, gx, gy
+        a_, l_, gx_, gy_, _ = pursuit_command(
+            win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
+            np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff, self._lag_s, band)
+        return float(a_[0]), float(l_[0]), float(gx_[0]), float(gy_[0])
 
     def reoptimise(self, t_s: float, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> float:
         """Choose the look-ahead distance and refine the correction plan; returns the plan's cost.
@@ -894,16 +938,13 @@ class PredictiveGuidance:
             self._next_reopt_t = t_s + p.reopt_period_s - SCHEDULE_TOLERANCE_S
             reoptimised = True
         assert self._win is not None  # set just above
-        a, l_eff, gx, gy, _ = pursuit_command(
-            self._win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
-            np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff,
-            self._lag_s, self._tick_band(state))
+        a, l_eff, gx, gy = self._pursuit(state)
         seg = min(int((t_s - self._plan_t0) / self._segment_s), self._segments - 1)
         correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
-        a_cmd = min(max(float(a[0]) + correction, -self._a_max), self._a_max)
+        a_cmd = min(max(a + correction, -self._a_max), self._a_max)
         # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
         # is pointing away; turn round towards it at the limit instead of planning.
-        behind = capture_side(state.x_m, state.y_m, state.course_rad, float(gx[0]), float(gy[0]),
+        behind = capture_side(state.x_m, state.y_m, state.course_rad, gx, gy,
                               f.tx, f.ty, self._capture_side)
         if behind and not self._capture_side:
             off_path = abs(f.crosstrack_m) > CAPTURE_SIDE_MIN_OFFSET_M
@@ -932,9 +973,9 @@ class PredictiveGuidance:
         elif ended:
             self._next_reopt_t = -math.inf  # plan afresh on the next tick
         self._last_cmd = a_cmd
-        extra = {"lookahead_m": float(l_eff[0]), "correction_m_s2": correction, "a_hat_m_s2": self._a_hat,
+        extra = {"lookahead_m": l_eff, "correction_m_s2": correction, "a_hat_m_s2": self._a_hat,
                  "capture_side": self._capture_side}
         if monitor is not None:
             extra.update({"model_lag_s": self._lag_s, "model_a_max_m_s2": self._a_max,
                           "model_unexplained": monitor.unexplained})
-        return frame_output(self.path, f, a_cmd, (float(gx[0]), float(gy[0])), extra, reoptimised)
+        return frame_output(self.path, f, a_cmd, (gx, gy), extra, reoptimised)

@@ -72,3 +72,30 @@ def test_a_compiled_flight_is_the_numpy_flight():
     assert a.t_s.size == b.t_s.size
     np.testing.assert_allclose(a.x_m, b.x_m, atol=1e-6)
     np.testing.assert_allclose(a.a_cmd_m_s2, b.a_cmd_m_s2, atol=1e-6)
+
+
+@pytest.mark.parametrize("seed", [3, 26, 91, 140])
+def test_the_compiled_tick_gives_the_numpy_command_goal_and_reference(seed):
+    # The tick's own pursuit and the capture reference's projection, compiled and in numpy, on the
+    # same kinds of state as above (on and off the path, past an open path's end, any course).
+    spec = random_spec(seed)
+    law = T.make_law("predictive", 0.03, spec, T.ModelSpec("lag"))
+    path = law.path
+    rng = np.random.default_rng(seed + 1)
+    for trial in range(20):
+        s = min(max(rng.uniform(-0.1, 1.1) * path.length_m, 0.0), path.length_m)
+        px, py = (float(c) for c in path.point(s))
+        tx, ty = (float(c) for c in path.tangent(s))
+        off = rng.choice([0.0, rng.normal(0.0, 2.0), rng.normal(0.0, 40.0)])
+        state = VehicleState(px - off * ty, py + off * tx, math.atan2(ty, tx) + rng.normal(0.0, 1.0),
+                             spec.speed_m_s * rng.uniform(0.02, 1.5))
+        law.step(10.0 * trial, state)
+        law._look_m = float(rng.uniform(3.0, 30.0))
+        law.compiled = True
+        compiled = law._pursuit(state), law._reference(state)
+        law.compiled = False
+        plain = law._pursuit(state), law._reference(state)
+        law.compiled = True
+        np.testing.assert_allclose(compiled[0], plain[0], rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(compiled[1], plain[1], rtol=1e-9, atol=1e-9)
+        assert all(math.isfinite(v) for v in compiled[0])
