@@ -556,6 +556,34 @@ def _pursue(win: _Window, xy: np.ndarray, course_rad: np.ndarray, speed_m_s: np.
     return a, l_eff, goal, d
 
 
+def tick_pursuit(win: _Window, band: _Band, state: VehicleState, look_m: float, curvature_ff: float, lead_s: float,
+                 kernel: rollout_kernel.Kernel | None) -> tuple[float, float, float, float]:
+    """:func:`pursuit_command` (not clipped) for one vehicle in its band: the command, L_eff and
+    the goal; by the compiled loop when ``kernel`` is given (the same numbers to rounding)."""
+    if kernel is not None:
+        lo, hi = band.limits(0)
+        a, _, l_eff, gx, gy = kernel.pursuit(
+            win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m), float(state.y_m),
+            float(state.course_rad), max(float(state.speed_m_s), MIN_SPEED_M_S), float(look_m),
+            float(curvature_ff), float(lead_s), lo, hi)
+        return a, l_eff, gx, gy
+    a_, l_, gx_, gy_, _ = pursuit_command(
+        win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
+        np.array([state.speed_m_s]), np.array([look_m]), math.inf, curvature_ff, lead_s, band)
+    return float(a_[0]), float(l_[0]), float(gx_[0]), float(gy_[0])
+
+
+def _project_one(win: _Window, band: _Band, x_m: float, y_m: float,
+                 kernel: rollout_kernel.Kernel | None) -> tuple[int, float]:
+    """The nearest window sample of one point within its band, and its signed cross-track error
+    (:func:`_nearest`; by the compiled loop when ``kernel`` is given)."""
+    if kernel is not None:
+        lo, hi = band.limits(0)
+        return kernel.project(win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(x_m), float(y_m), lo, hi)
+    i0, d, _ = _nearest(win, np.array([x_m]), np.array([y_m]), band)
+    return int(i0[0]), float(d[0])
+
+
 #: Off the path by less than this, a capture turn ignores the closest point's side (only the goal's).
 CAPTURE_SIDE_MIN_OFFSET_M = 1.0
 
@@ -804,14 +832,8 @@ class PredictiveGuidance:
             return None
         win = self._win
         assert win is not None  # set by reoptimise() before any rollout
-        band = self._tick_band(state)
-        if self._kernel is not None and self.compiled:
-            lo, hi = band.limits(0)
-            i, d0 = self._kernel.project(win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m),
-                                         float(state.y_m), lo, hi)
-        else:
-            i0, d, _ = _nearest(win, np.array([state.x_m]), np.array([state.y_m]), band)
-            i, d0 = int(i0[0]), float(d[0])
+        i, d0 = _project_one(win, self._tick_band(state), state.x_m, state.y_m,
+                             self._kernel if self.compiled else None)
         vx = state.speed_m_s * math.cos(state.course_rad)
         vy = state.speed_m_s * math.sin(state.course_rad)
         rate = float(win.tx[i] * vy - win.ty[i] * vx)  # ground velocity across the path, left positive
@@ -832,22 +854,6 @@ class PredictiveGuidance:
         win = self._win
         assert win is not None
         return _band(win, np.array([win.index_of(self._s_win)]), state.speed_m_s, 0.0, self._d_win)
-
-    def _pursuit(self, state: VehicleState) -> tuple[float, float, float, float]:
-        """The tick's pursuit command (not clipped), L_eff and goal (compiled when the rollouts are)."""
-        p, win, band = self.params, self._win, self._tick_band(state)
-        assert win is not None
-        if self._kernel is not None and self.compiled:
-            lo, hi = band.limits(0)
-            a, _, l_eff, gx, gy = self._kernel.pursuit(
-                win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m), float(state.y_m),
-                float(state.course_rad), max(float(state.speed_m_s), MIN_SPEED_M_S), float(self._look_m),
-                float(p.curvature_ff), float(self._lag_s), lo, hi)
-            return a, l_eff, gx, gy
-        a_, l_, gx_, gy_, _ = pursuit_command(
-            win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
-            np.array([state.speed_m_s]), np.array([self._look_m]), math.inf, p.curvature_ff, self._lag_s, band)
-        return float(a_[0]), float(l_[0]), float(gx_[0]), float(gy_[0])
 
     def reoptimise(self, t_s: float, state: VehicleState, s_proj_m: float, crosstrack_m: float) -> float:
         """Choose the look-ahead distance and refine the correction plan; returns the plan's cost.
@@ -938,7 +944,8 @@ class PredictiveGuidance:
             self._next_reopt_t = t_s + p.reopt_period_s - SCHEDULE_TOLERANCE_S
             reoptimised = True
         assert self._win is not None  # set just above
-        a, l_eff, gx, gy = self._pursuit(state)
+        a, l_eff, gx, gy = tick_pursuit(self._win, self._tick_band(state), state, self._look_m, p.curvature_ff,
+                                        self._lag_s, self._kernel if self.compiled else None)
         seg = min(int((t_s - self._plan_t0) / self._segment_s), self._segments - 1)
         correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
         a_cmd = min(max(a + correction, -self._a_max), self._a_max)

@@ -13,7 +13,7 @@ import pytest
 from companion.bench import tracking as T
 from companion.bench.scenarios import random_spec
 from companion.guidance import rollout_kernel
-from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
+from companion.guidance.predictive import PredictiveGuidance, PredictiveParams, tick_pursuit
 from companion.guidance.types import GuidanceParams, VehicleState
 from companion.sim.simulator import LagModel, simulate
 
@@ -91,10 +91,14 @@ def test_the_compiled_tick_gives_the_numpy_command_goal_and_reference(seed):
                              spec.speed_m_s * rng.uniform(0.02, 1.5))
         law.step(10.0 * trial, state)
         law._look_m = float(rng.uniform(3.0, 30.0))
+        def tick(kernel, state=state):
+            return tick_pursuit(law._win, law._tick_band(state), state, law._look_m, law.params.curvature_ff,
+                                law._lag_s, kernel)
+
         law.compiled = True
-        compiled = law._pursuit(state), law._reference(state)
+        compiled = tick(law._kernel), law._reference(state)
         law.compiled = False
-        plain = law._pursuit(state), law._reference(state)
+        plain = tick(None), law._reference(state)
         law.compiled = True
         np.testing.assert_allclose(compiled[0], plain[0], rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(compiled[1], plain[1], rtol=1e-9, atol=1e-9)
