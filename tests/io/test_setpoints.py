@@ -123,3 +123,40 @@ def test_left_turn_command_rolls_left_wing_down_in_ned():
     assert roll == pytest.approx(s.roll_ned_rad)
     assert yaw == pytest.approx(math.pi / 2)  # flying east: NED yaw 90 deg
     assert math.isclose(w * w + qx * qx + qy * qy + qz * qz, 1.0)
+
+
+def test_the_setpoint_turns_at_the_curvature_asked_for_times_the_speed_flown():
+    # a = 1.25 m/s^2 at V = 5 m/s asks for a 20 m radius; flown at V_f the heading must turn at
+    # V_f / 20 rad/s, whatever V_f (within the ratio bounds 0.5-1.5 of V).
+    a, v = 1.25, 5.0
+    for v_f in (4.3, 5.0, 5.023, 6.0):
+        s = sp.velocity_setpoint(a, 0.0, v, 0.02, 10.0, HOLD, v_f)
+        assert s.yaw_rate_ned_rad_s == pytest.approx(-v_f / 20.0, rel=1e-12)
+        assert s.course_cmd_enu_rad == pytest.approx(v_f / 20.0 * 0.02, rel=1e-12)
+        assert math.hypot(s.vx_ned_m_s, s.vy_ned_m_s) == pytest.approx(v)  # the speed asked is still V
+    # Outside the bounds: half and one and a half times the rate at V.
+    assert sp.velocity_setpoint(a, 0.0, v, 0.02, 10.0, HOLD, 0.3).yaw_rate_ned_rad_s == pytest.approx(-0.5 * a / v)
+    assert sp.velocity_setpoint(a, 0.0, v, 0.02, 10.0, HOLD, 20.0).yaw_rate_ned_rad_s == pytest.approx(-1.5 * a / v)
+    # None (or not finite): a / V, as before.
+    assert sp.velocity_setpoint(a, 0.0, v, 0.02, 10.0, HOLD).yaw_rate_ned_rad_s == pytest.approx(-a / v)
+    assert sp.velocity_setpoint(a, 0.0, v, 0.02, 10.0, HOLD, math.nan).yaw_rate_ned_rad_s == pytest.approx(-a / v)
+
+
+def test_a_vehicle_flying_faster_than_asked_still_flies_the_radius_asked():
+    # A point flying at 5.5 m/s along the commanded course, the setpoint re-issued every tick from
+    # the course it reached: after a quarter turn its track's radius is V^2 / a (20 m), measured
+    # from three points of the track (the circumscribed circle), not 22 m as at a / V.
+    a, v, v_f, dt = 1.25, 5.0, 5.5, 0.02
+    for flown, radius in ((v_f, 20.0), (None, v_f * v / a)):
+        x = y = course = 0.0
+        pts = [(x, y)]
+        for _ in range(int(round(math.pi / 2 * radius / v_f / dt))):
+            s = sp.velocity_setpoint(a, course, v, dt, 10.0, HOLD, flown)
+            mid = course + 0.5 * (s.course_cmd_enu_rad - course)
+            x, y = x + v_f * math.cos(mid) * dt, y + v_f * math.sin(mid) * dt
+            course = s.course_cmd_enu_rad
+            pts.append((x, y))
+        (ax, ay), (bx, by), (cx, cy) = pts[0], pts[len(pts) // 2], pts[-1]
+        ab, bc, ca = math.dist((ax, ay), (bx, by)), math.dist((bx, by), (cx, cy)), math.dist((cx, cy), (ax, ay))
+        area2 = abs((bx - ax) * (cy - ay) - (cx - ax) * (by - ay))
+        assert ab * bc * ca / (2.0 * area2) == pytest.approx(radius, rel=2e-3)
