@@ -157,12 +157,6 @@ class AttitudeSetpoint:
     pitch_ned_rad: float = 0.0
 
 
-#: The bounds of ``V_f / V`` in :func:`velocity_setpoint`: a copter still gathering speed from
-#: hover (or a noisy speed) turns its setpoint at no less than half the rate, and no more than
-#: one and a half times.
-FLOWN_SPEED_RATIO_BOUNDS = (0.5, 1.5)
-
-
 def velocity_setpoint(
     a_cmd_m_s2: float,
     course_enu_rad: float,
@@ -170,18 +164,8 @@ def velocity_setpoint(
     dt_s: float,
     alt_m: float,
     hold: AltitudeHold,
-    flown_speed_m_s: float | None = None,
 ) -> VelocitySetpoint:
     """Velocity + yaw-rate setpoint for a lateral acceleration command.
-
-    The laws compute ``a_cmd`` for a vehicle flying at V, so they ask for a track curvature
-    ``a_cmd / V^2``. A vehicle flying at ``V_f`` while its setpoint turns at ``omega`` flies the
-    curvature ``omega / V_f``; so with ``flown_speed_m_s`` given the setpoint turns at
-    ``omega = (a_cmd / V^2) V_f`` (``V_f / V`` held within ``FLOWN_SPEED_RATIO_BOUNDS``), the
-    curvature asked for at the speed flown, and without it at ``a_cmd / V``, which flies that
-    curvature only at V. (Real ArduCopter flew a figure-eight at 5.023 m/s for 5 commanded:
-    0.46 % too little curvature, a steady 5-9 cm outside every turn at the smoother settings,
-    docs/real_firmware.md.)
 
     Parameters
     ----------
@@ -191,7 +175,6 @@ def velocity_setpoint(
     dt_s : tick period; the velocity vector points along the course reached one tick ahead.
     alt_m : current altitude (up, metres above the local origin).
     hold : the altitude hold.
-    flown_speed_m_s : the measured ground speed, or None (turn at ``a_cmd / V``).
 
     Examples
     --------
@@ -200,19 +183,10 @@ def velocity_setpoint(
     >>> sp = velocity_setpoint(0.0, 0.0, 5.0, 0.02, 10.0, AltitudeHold(10.0))
     >>> round(sp.vx_ned_m_s, 9), round(sp.vy_ned_m_s, 9), sp.yaw_rate_ned_rad_s
     (0.0, 5.0, -0.0)
-
-    A turn of radius 20 m asked at 5 m/s (1.25 m/s^2), flown at 5.5 m/s: the setpoint turns at
-    5.5 / 20 rad/s, not 5 / 20 (ENU left turn: NED yaw rate negative).
-
-    >>> round(velocity_setpoint(1.25, 0.0, 5.0, 0.02, 10.0, AltitudeHold(10.0), 5.5).yaw_rate_ned_rad_s, 9)
-    -0.275
     """
     if not (speed_m_s > 0 and math.isfinite(speed_m_s)):
         raise ValueError(f"speed_m_s: expected a finite number > 0, got {speed_m_s!r}")
     omega_enu_rad_s = a_cmd_m_s2 / speed_m_s
-    if flown_speed_m_s is not None and math.isfinite(flown_speed_m_s):
-        low, high = FLOWN_SPEED_RATIO_BOUNDS
-        omega_enu_rad_s *= min(max(flown_speed_m_s / speed_m_s, low), high)
     course_cmd = frames.wrap_pi(course_enu_rad + omega_enu_rad_s * dt_s)
     ve = speed_m_s * math.cos(course_cmd)
     vn = speed_m_s * math.sin(course_cmd)

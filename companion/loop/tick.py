@@ -27,9 +27,7 @@ Rules applied here (and therefore identically in flight and in replay):
   (:func:`companion.io.setpoints.profile_targets`; the guidance gets ``V(s)`` through
   :class:`companion.guidance.profiled.ProfiledGuidance`);
 * the velocity setpoint's direction is the **commanded course**, integrated tick by tick
-  (``course_cmd += a_cmd / V^2 * V_f * dt``, V_f the measured ground speed: the curvature the law
-  asks for at the speed flown, :func:`companion.io.setpoints.velocity_setpoint`), not re-derived
-  from the measured course every tick. A vehicle
+  (``course_cmd += a_cmd / V * dt``), not re-derived from the measured course every tick. A vehicle
   whose velocity loop lags (time constant tau) trails the command by about ``omega * tau`` in a
   steady turn; re-basing on the measured course each tick would cut the achieved turn rate by
   ``dt / tau`` (a 0.02 s tick on a 0.3 s velocity loop turns 15 times too slowly). The commanded
@@ -101,10 +99,9 @@ DEBUG_FIELDS = (
 )
 #: Value of the ``debug_layout`` field of the layout written now; a log's value says which of the
 #: later fields it holds (older logs: NaN padding there).
-DEBUG_LAYOUT = 4
+DEBUG_LAYOUT = 3
 LAYOUT_WITH_YAW = 2  # from this layout on, field 28 holds the tick's yaw
 LAYOUT_WITH_RATE = 3  # from this layout on, field 29 holds the loop rate
-LAYOUT_TURN_AT_FLOWN_SPEED = 4  # from this layout on, the setpoint turned at the speed flown (TickConfig)
 
 
 @dataclass(frozen=True)
@@ -124,10 +121,6 @@ class TickConfig:
     max_course_lead_rad: float = math.pi / 4
     gathering_fraction: float = 0.5
     profile: object = None  # the mission's PathProfile (altitude and speed along the path), or None
-    # Velocity output: turn the setpoint at the curvature asked for times the measured ground speed
-    # (velocity_setpoint's flown_speed_m_s); False turns it at a_cmd / V, as flights before
-    # LAYOUT_TURN_AT_FLOWN_SPEED did (replay sets it from the log).
-    turn_at_flown_speed: bool = True
 
     def __post_init__(self) -> None:
         for name in ("speed_m_s", "rate_hz", "stale_s", "max_bank_deg", "alt_gain_1_s", "max_climb_m_s"):
@@ -284,7 +277,7 @@ def compute_tick(
                 lead = max(-config.max_course_lead_rad, min(config.max_course_lead_rad, lead))
                 base = frames.wrap_pi(course + lead)
             speed, hold = _targets(config, output.s_proj_m)
-            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _flown_speed(config, sample))
+            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold)
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
@@ -355,12 +348,7 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
         return _attitude(config, a_cmd, last.course_rad, alt_m, last.output.s_proj_m)
     base = course_cmd_rad if math.isfinite(course_cmd_rad) else last.course_rad
     speed, hold = _targets(config, last.output.s_proj_m)
-    return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _flown_speed(config, sample))
-
-
-def _flown_speed(config: TickConfig, sample: PositionSample) -> float | None:
-    """The measured ground speed the setpoint turns at (None: at the mission speed)."""
-    return math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) if config.turn_at_flown_speed else None
+    return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold)
 
 
 def _float32(x: float) -> float:

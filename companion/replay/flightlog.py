@@ -341,15 +341,6 @@ def _setpoint_ticks(pairs: list[tuple]) -> list[LoggedTick]:
             for i, (time_s, (sample_time, sample), yaw, sp) in enumerate(pairs)]
 
 
-def recorded_layout(ticks: list[LoggedTick]) -> int:
-    """The ``debug_layout`` the flight's guidance rows were written with (0: none recorded)."""
-    for tk in ticks:
-        row = tk.debug
-        if row is not None and math.isfinite(row[DEBUG_INDEX["debug_layout"]]):
-            return int(row[DEBUG_INDEX["debug_layout"]])
-    return 0
-
-
 def recorded_rate_hz(ticks: list[LoggedTick]) -> float | None:
     """The loop rate the flight's ticks record (``debug_layout`` >= 3), or None (older logs)."""
     for tk in ticks:

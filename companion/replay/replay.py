@@ -46,7 +46,7 @@ from companion.io.tlog import MISSION_SUFFIX, mission_path_beside
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.loop.driver import TickDriver, make_guidance
 from companion.loop.limits import limit_from_params, mission_with_limit
-from companion.loop.tick import DEFAULT_STALE_S, LAYOUT_TURN_AT_FLOWN_SPEED, TickConfig
+from companion.loop.tick import DEFAULT_STALE_S, TickConfig
 from companion.mission import Mission, load_mission
 from companion.mission.placement import onto_autopilot_origin
 from companion.replay.flightlog import (
@@ -57,7 +57,6 @@ from companion.replay.flightlog import (
     LoggedTick,
     phase_name,
     read_flight,
-    recorded_layout,
     recorded_rate_hz,
 )
 from companion.replay.progress import ByteProgress
@@ -155,17 +154,14 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
 
 
 def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
-                    stale_s: float = DEFAULT_STALE_S, turn_at_flown_speed: bool = True) -> TickConfig:
+                    stale_s: float = DEFAULT_STALE_S) -> TickConfig:
     """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
-    (``"velocity"`` or ``"attitude"``), the stale-position limit ``stale_s`` and the setpoint's
-    turn rule (``TickConfig.turn_at_flown_speed``: False for logs written before
-    ``LAYOUT_TURN_AT_FLOWN_SPEED``).
+    (``"velocity"`` or ``"attitude"``) and the stale-position limit ``stale_s``.
 
     ``--max-bank-deg`` is not recorded in the log; replay uses its default (35 deg).
     """
     return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                      output=output, stale_s=stale_s, profile=mission.profile,
-                      turn_at_flown_speed=turn_at_flown_speed)
+                      output=output, stale_s=stale_s, profile=mission.profile)
 
 
 def flight_stale_s(flight: LoggedFlight) -> float:
@@ -277,8 +273,7 @@ def replay_flight(
     mission = in_flight_frame(flight, mission)
     rate_hz = config.rate_hz if config is not None else flight_rate_hz(flight, mission)
     if config is None and flight.kind == "companion":
-        config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight),
-                                 recorded_layout(flight.ticks) >= LAYOUT_TURN_AT_FLOWN_SPEED)
+        config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight))
     config = config or tick_config_for(mission, rate_hz, flight_output(flight))
     guidance = guidance_factory(mission, rate_hz)
     replay = _Replay(flight, mission, tolerance, config, guidance)

@@ -146,18 +146,15 @@ def test_below_half_the_speed_the_course_is_the_commanded_one(vx, vy, gathering)
     """A copter gathering speed (1.1 m/s, 26.6 deg north of east; 2.49 m/s east) flies towards its
     commanded course (-0.1 rad), whatever its velocity's direction yet: the guidance gets that
     course and the command integrates from it, unclamped; on the first tick, its yaw. From V/2 (2.6 m/s at 22.6 deg) on the
-    measured course stands, and the command leads it by at most 45 deg. The command turns by
-    a / V * dt = 0.004 rad times the speed flown over V, no less than half of it (0.002 rad up to
-    2.5 m/s; 0.00208 rad at 2.6 m/s)."""
+    measured course stands, and the command leads it by at most 45 deg."""
     g = ConstantTurn(a=1.0)
     r = compute_tick(g, 1, 0.02, sample(vx=vx, vy=vy), 0.0, CFG, prev_course_cmd_rad=-0.1)
     measured = math.atan2(vx, vy)
     given = g.calls[0][1].course_rad
-    turn = 0.004 * max(math.hypot(vx, vy) / 5.0, 0.5)
     if gathering:
-        assert given == -0.1 and r.course_cmd_rad == pytest.approx(-0.1 + turn)
+        assert given == -0.1 and r.course_cmd_rad == pytest.approx(-0.1 + 0.004)
     else:
-        assert given == pytest.approx(measured) and r.course_cmd_rad == pytest.approx(-0.1 + turn)
+        assert given == pytest.approx(measured) and r.course_cmd_rad == pytest.approx(-0.1 + 0.004)
     # the first tick (no commanded course yet): the yaw (facing south) while gathering speed,
     # else the measured course; without a yaw, the measured course
     g0 = ConstantTurn(a=0.0)
@@ -165,19 +162,3 @@ def test_below_half_the_speed_the_course_is_the_commanded_one(vx, vy, gathering)
     compute_tick(g0, 0, 0.0, sample(vx=vx, vy=vy), 0.0, CFG)
     assert g0.calls[0][1].course_rad == pytest.approx(-math.pi / 2 if gathering else measured)
     assert g0.calls[1][1].course_rad == pytest.approx(measured)
-
-
-def test_the_setpoint_turns_at_the_speed_flown_and_a_log_of_the_old_rule_at_the_mission_speed():
-    # Flying east at 5.5 m/s for a mission speed of 5: a = 1 m/s^2 is the curvature 1/25 1/m, so
-    # the setpoint turns at 5.5 / 25 rad/s (the coast too); TickConfig(turn_at_flown_speed=False),
-    # which replays logs written before that rule, at a / V = 0.2 rad/s.
-    g = ConstantTurn(a=1.0)
-    fast = sample(vy=5.5)
-    r = compute_tick(g, 0, 0.0, fast, 0.0, CFG)
-    assert r.setpoint.yaw_rate_ned_rad_s == pytest.approx(-5.5 / 25.0)
-    assert r.course_cmd_rad == pytest.approx(5.5 / 25.0 * 0.02)
-    assert r.debug[IDX["yaw_rate_cmd_rad_s"]] == pytest.approx(5.5 / 25.0)
-    assert coast_setpoint(r, fast, 0.02, CFG, r.course_cmd_rad).course_cmd_enu_rad == pytest.approx(2 * 5.5 / 25.0 * 0.02)
-    old = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0, stale_s=0.3, turn_at_flown_speed=False)
-    r_old = compute_tick(g, 0, 0.0, fast, 0.0, old)
-    assert r_old.setpoint.yaw_rate_ned_rad_s == pytest.approx(-0.2)

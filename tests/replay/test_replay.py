@@ -388,30 +388,3 @@ def test_synthetic_log_streams_the_recorded_arducopter_telemetry_at_its_rates(fl
     real_counts = Counter(MSG_NAME[r.msg_id] for r in real if t0 <= r.time_s <= t1 and r.src_component == 1)
     for name in ("GLOBAL_POSITION_INT", "GPS_RAW_INT", "VFR_HUD", "SYS_STATUS", "HEARTBEAT"):
         assert real_counts[name] / (t1 - t0) == pytest.approx(TELEMETRY_STREAMS_HZ[name], rel=0.25), name
-
-
-def test_a_log_written_before_the_turn_at_the_flown_speed_replays_with_the_turn_it_flew(flight, tmp_path, monkeypatch):
-    # The flight's rows say debug_layout 4 (setpoints turned at the speed flown); the same log with
-    # field 27 rewritten to 3 is replayed with the rule of its time (TickConfig.turn_at_flown_speed
-    # False: a / V), which tests/loop/test_tick.py pins down.
-    import companion.replay.replay as R
-
-    chosen = []
-    real = R.tick_config_for
-
-    def spy(*args, **kwargs):
-        config = real(*args, **kwargs)
-        chosen.append(config.turn_at_flown_speed)
-        return config
-
-    monkeypatch.setattr(R, "tick_config_for", spy)
-    assert replay_log(flight).within_tolerance
-    old = copy_flight(flight, tmp_path / "layout3.tlog")
-    data = bytearray(old.read_bytes())
-    rows = companion_packets(bytes(data), DFA_ID)
-    for at, length in rows:
-        was, now = edit_float(data, at, length, DFA_DATA_OFFSET + 4 * 27, -1.0)
-        assert (was, now) == (4.0, 3.0)
-    old.write_bytes(bytes(data))
-    assert replay_log(old).within_tolerance
-    assert chosen == [True, False]
