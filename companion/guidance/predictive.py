@@ -614,6 +614,12 @@ class ModelMonitor:
     candidates restart from the observation. ``unexplained`` is the error of the model in use over the observed acceleration's
     mean square: above :data:`MONITOR_FALLBACK_SHARE` no candidate stands for the vehicle and the
     law flies its feedback core alone (no plan). Pure arithmetic on the inputs: deterministic.
+
+    The law plans with the limit of the model in use but holds its command at the vehicle's
+    stated limit: a command held at a model limit below the vehicle's would fly every candidate
+    limit alike, and the monitor could never see the vehicle fly more. A real ArduCopter's
+    monitor once took half the limit read from the autopilot, exactly a U-turn's ``V^2 / R``,
+    and kept it through the turn, 3.1 m wide (docs/real_firmware.md).
     """
 
     def __init__(self, lag_s: float, a_max_m_s2: float):
@@ -948,7 +954,8 @@ class PredictiveGuidance:
                                         self._lag_s, self._kernel if self.compiled else None)
         seg = min(int((t_s - self._plan_t0) / self._segment_s), self._segments - 1)
         correction = 0.0 if monitor is not None and monitor.fallback else float(self._plan[seg])
-        a_cmd = min(max(a + correction, -self._a_max), self._a_max)
+        # At the vehicle's stated limit; the model's limit is the plan's (ModelMonitor: why).
+        a_cmd = min(max(a + correction, -p.a_max_m_s2), p.a_max_m_s2)
         # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
         # is pointing away; turn round towards it at the limit instead of planning.
         behind = capture_side(state.x_m, state.y_m, state.course_rad, gx, gy,

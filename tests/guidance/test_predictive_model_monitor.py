@@ -94,3 +94,30 @@ def test_predictive_given_a_model_wrong_by_2x_adapts_and_tracks_at_least_as_well
     assert out[True][2]["model_lag_s"] == pytest.approx(0.6)
     assert out[True][2]["model_a_max_m_s2"] == pytest.approx(2.5)
     assert out[True][0] <= out[False][0]
+
+
+def test_a_monitor_that_took_half_the_limit_gets_it_back_when_the_vehicle_flies_more():
+    # A racetrack whose 15 m arcs ask 1.67 m/s^2 at 5 m/s, a vehicle that flies what it is told up
+    # to the 2.5 m/s^2 read from the autopilot (0.3 s lag), and the monitor started on its lowest
+    # candidate limit (1.25 m/s^2, as a real ArduCopter flight's monitor once chose). Commands
+    # held at that model limit would fly every candidate limit alike, and nothing could show the
+    # monitor the vehicle flies more: it would stay, and the vehicle would go wide in every arc
+    # (1.25 m/s^2 turns a 20 m radius). The command is held at the vehicle's stated limit; the
+    # model's limit is what the plan expects.
+    text = (ROOT / "missions" / "racetrack_predictive.yaml").read_text()
+    text = text.replace("radius_m: 30.0", "radius_m: 15.0").replace("a_max_m_s2: 5.0 ", "a_max_m_s2: 2.5 ")
+    from companion.mission import parse_mission
+
+    mission = parse_mission(text, "racetrack_15m")
+    params = replace(mission.guidance, adapt_model=True)
+    law = TwoPhaseGuidance(mission.path, params)
+    inner = law._predictive  # the close-range PredictiveGuidance
+    monitor = inner.monitor
+    monitor.current = int(np.flatnonzero((monitor.lags == 0.3) & (monitor.limits == 1.25))[0])
+    st = mission.start
+    r = simulate(mission.path, law, VehicleState(st.x_m, st.y_m, st.heading_rad, mission.speed_m_s), params,
+                 model=LagModel(tau_s=0.3, a_max_m_s2=2.5), t_max_s=90.0, keep_outputs=True)
+    after = r.t_s > 30.0
+    assert monitor.a_max_m_s2 == pytest.approx(2.5)
+    assert float(np.max(np.abs(r.crosstrack_m[after]))) < 0.3
+    assert float(np.max(np.abs(r.a_cmd_m_s2))) <= 2.5 + 1e-12
