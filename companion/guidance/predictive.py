@@ -929,8 +929,9 @@ class PredictiveGuidance:
 
     def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         p = self.params
-        if self._last_t is not None:  # advance the lag model over the last tick with the last command
-            self._a_hat += (self._last_cmd - self._a_hat) * self._alpha(max(t_s - self._last_t, 0.0))
+        if self._last_t is not None:  # advance the lag model over the last tick with the last command,
+            flown = min(max(self._last_cmd, -self._a_max), self._a_max)  # as far as the model flies it
+            self._a_hat += (flown - self._a_hat) * self._alpha(max(t_s - self._last_t, 0.0))
         self._last_t = t_s
         monitor = self.monitor
         if monitor is not None:
