@@ -21,6 +21,15 @@ def _compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 @_compiled
+def _band_limits(centre: int, back: int, ahead: int, whole: bool, n: int) -> tuple[int, int]:
+    """The first and last window sample of a band (:class:`companion.guidance.predictive._Band`)
+    around ``centre``: ``back`` samples behind to ``ahead`` ahead, or the whole window."""
+    if whole:
+        return 0, n - 1
+    return max(centre - back, 0), min(centre + ahead, n - 1)
+
+
+@_compiled
 def _nearest(wx: np.ndarray, wy: np.ndarray, x: float, y: float, lo_j: int, hi_j: int) -> int:
     """``_project``'s search: the first nearest window sample among ``lo_j .. hi_j`` (the band).
     Only the band is measured: the samples outside it cannot be chosen (the goal search measures
@@ -117,7 +126,7 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
             gx, gy = speed * math.cos(h), speed * math.sin(h)  # the ground velocity
             if windy:
                 gx, gy = gx + wind_x, gy + wind_y
-            lo_j, hi_j = (0, n - 1) if whole else (max(centre - back, 0), min(centre + ahead, n - 1))
+            lo_j, hi_j = _band_limits(centre, back, ahead, whole, n)
             centre = _nearest(wx, wy, x, y, lo_j, hi_j)
             a, d, _, _, _ = _pursue(wx, wy, wtx, wty, wk, spacing, x, y, math.atan2(gy, gx),
                                     max(math.hypot(gx, gy), min_speed), look[row], cff, lead, centre)
@@ -138,7 +147,7 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
         gx, gy = speed * math.cos(h), speed * math.sin(h)
         if windy:
             gx, gy = gx + wind_x, gy + wind_y
-        lo_j, hi_j = (0, n - 1) if whole else (max(centre - back, 0), min(centre + ahead, n - 1))
+        lo_j, hi_j = _band_limits(centre, back, ahead, whole, n)
         i0 = _nearest(wx, wy, x, y, lo_j, hi_j)
         dev0 = _offset(wx, wy, wtx, wty, wk, spacing, x, y, i0)[0]
         dev1 = wtx[i0] * gy - wty[i0] * gx
@@ -150,11 +159,12 @@ def _rollout(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
 
 @_compiled
 def _pursuit(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk: np.ndarray, spacing: float,
-             x: float, y: float, course: float, v: float, look: float, cff: float, lead: float, lo_j: int,
-             hi_j: int) -> tuple[float, float, float, float, float]:
+             x: float, y: float, course: float, v: float, look: float, cff: float, lead: float, centre: int,
+             back: int, ahead: int, whole: bool) -> tuple[float, float, float, float, float]:
     """:func:`companion.guidance.predictive.pursuit_command` for one vehicle (not clipped), its
-    nearest sample searched within ``lo_j .. hi_j`` (its band): the command, the cross-track
-    error, L_eff and the goal. The tick's own command, where the numpy one costs some ninety calls."""
+    nearest sample searched in its band: the command, the cross-track error, L_eff and the goal.
+    The tick's own command, where the numpy one costs some ninety calls."""
+    lo_j, hi_j = _band_limits(centre, back, ahead, whole, wx.shape[0])
     i0 = _nearest(wx, wy, x, y, lo_j, hi_j)
     out: tuple[float, float, float, float, float] = _pursue(wx, wy, wtx, wty, wk, spacing, x, y, course, v, look,
                                                             cff, lead, i0)
@@ -163,8 +173,9 @@ def _pursuit(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, w
 
 @_compiled
 def _project(wx: np.ndarray, wy: np.ndarray, wtx: np.ndarray, wty: np.ndarray, wk: np.ndarray, spacing: float,
-             x: float, y: float, lo_j: int, hi_j: int) -> tuple[int, float]:
-    """:func:`companion.guidance.predictive._nearest` for one point: its nearest sample within
-    ``lo_j .. hi_j`` and its signed cross-track error there."""
+             x: float, y: float, centre: int, back: int, ahead: int, whole: bool) -> tuple[int, float]:
+    """:func:`companion.guidance.predictive._nearest` for one point: its nearest sample in its
+    band and its signed cross-track error there."""
+    lo_j, hi_j = _band_limits(centre, back, ahead, whole, wx.shape[0])
     i0 = _nearest(wx, wy, x, y, lo_j, hi_j)
     return i0, _offset(wx, wy, wtx, wty, wk, spacing, x, y, i0)[0]

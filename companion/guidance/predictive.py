@@ -348,14 +348,6 @@ class _Band:
         # inf outside, made on their first search (the compiled rollouts never search here).
         self._tabled = not self.whole and self.centre.size > 1 and n <= 600
 
-    def limits(self, row: int) -> tuple[int, int]:
-        """The first and last sample of row ``row``'s band (the compiled loops search those)."""
-        n = self._win.x.size
-        if self.whole:
-            return 0, n - 1
-        c = int(self.centre[row])
-        return max(c - self.back, 0), min(c + self.ahead, n - 1)
-
     def nearest(self, r2: np.ndarray) -> np.ndarray:
         """The nearest sample of each row within its band; the band moves there."""
         if not self.whole:
@@ -561,11 +553,10 @@ def tick_pursuit(win: _Window, band: _Band, state: VehicleState, look_m: float, 
     """:func:`pursuit_command` (not clipped) for one vehicle in its band: the command, L_eff and
     the goal; by the compiled loop when ``kernel`` is given (the same numbers to rounding)."""
     if kernel is not None:
-        lo, hi = band.limits(0)
         a, _, l_eff, gx, gy = kernel.pursuit(
             win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m), float(state.y_m),
             float(state.course_rad), max(float(state.speed_m_s), MIN_SPEED_M_S), float(look_m),
-            float(curvature_ff), float(lead_s), lo, hi)
+            float(curvature_ff), float(lead_s), int(band.centre[0]), band.back, band.ahead, band.whole)
         return a, l_eff, gx, gy
     a_, l_, gx_, gy_, _ = pursuit_command(
         win, np.array([state.x_m]), np.array([state.y_m]), np.array([state.course_rad]),
@@ -578,8 +569,8 @@ def _project_one(win: _Window, band: _Band, x_m: float, y_m: float,
     """The nearest window sample of one point within its band, and its signed cross-track error
     (:func:`_nearest`; by the compiled loop when ``kernel`` is given)."""
     if kernel is not None:
-        lo, hi = band.limits(0)
-        return kernel.project(win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(x_m), float(y_m), lo, hi)
+        return kernel.project(win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(x_m), float(y_m),
+                              int(band.centre[0]), band.back, band.ahead, band.whole)
     i0, d, _ = _nearest(win, np.array([x_m]), np.array([y_m]), band)
     return int(i0[0]), float(d[0])
 

@@ -57,7 +57,7 @@ def load() -> Kernel | None:
             _rollout(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0.0, 0.0, np.array([3.0]), np.zeros((2, 1)), 5.0, 0.0,
                      0.0, 0.5, 0.2, 1.0, 0.3, 5.0, 2, 3, 5, False, np.zeros(2), 0.4, 0.1, 0.1,
                      np.zeros((3, 3)))
-            _pursuit(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0.0, 5.0, 3.0, 1.0, 0.3, 0, 4)
-            _project(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0, 4)
+            _pursuit(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 0.0, 5.0, 3.0, 1.0, 0.3, 2, 3, 5, False)
+            _project(s, z, np.ones(5), z, z, 1.0, 0.5, 0.5, 2, 3, 5, False)
             _loaded.append(Kernel(_rollout, _pursuit, _project))
     return _loaded[0]
