@@ -7,7 +7,7 @@ import math
 import sys
 
 from companion.errors import CompanionError
-from companion.loop.tick import DEFAULT_STALE_S
+from companion.loop.tick import DEFAULT_DRIFT_TC_S, DEFAULT_STALE_S
 
 
 def add_flight_options(parser, *, connect_required: bool = True, tlog_prefix: str = "flight") -> None:
@@ -37,6 +37,10 @@ def add_flight_options(parser, *, connect_required: bool = True, tlog_prefix: st
     parser.add_argument("--output", choices=("auto", "velocity", "attitude"), default="auto",
                         help="setpoint type: velocity + yaw rate (copter, rover) or attitude (plane)")
     parser.add_argument("--max-bank-deg", type=float, default=35.0, help="fixed-wing bank limit (default 35)")
+    parser.add_argument("--drift-tc-s", type=float, default=DEFAULT_DRIFT_TC_S,
+                        help="velocity output: estimate the autopilot's velocity-estimate drift (its position "
+                             "leaving the integral of its velocity), low-passed over this long, and compensate "
+                             f"it; 0 turns it off (default {DEFAULT_DRIFT_TC_S:g}; docs/flying.md)")
     parser.add_argument("--tlog", default=None, help=f"flight log path (default logs/{tlog_prefix}-<UTC time>.tlog)")
     parser.add_argument("--signing-key-file", default=None,
                         help="MAVLink 2 signing key: 64 hex characters or a passphrase (SHA-256)")
@@ -135,6 +139,7 @@ def options_from_args(args, mission, **overrides):
         heartbeat_timeout_s=getattr(args, "heartbeat_timeout_s", 15.0),
         origin_timeout_s=getattr(args, "origin_timeout_s", 10.0),
         position_timeout_s=getattr(args, "position_timeout_s", 90.0),
+        drift_tc_s=getattr(args, "drift_tc_s", DEFAULT_DRIFT_TC_S),
         health=health_options_from_args(args),
     )
     kw.update(overrides)

@@ -164,6 +164,7 @@ def velocity_setpoint(
     dt_s: float,
     alt_m: float,
     hold: AltitudeHold,
+    drift_ned_m_s: tuple[float, float] = (0.0, 0.0),
 ) -> VelocitySetpoint:
     """Velocity + yaw-rate setpoint for a lateral acceleration command.
 
@@ -175,6 +176,9 @@ def velocity_setpoint(
     dt_s : tick period; the velocity vector points along the course reached one tick ahead.
     alt_m : current altitude (up, metres above the local origin).
     hold : the altitude hold.
+    drift_ned_m_s : the velocity estimate's drift (north, east; :mod:`companion.guidance.drift`),
+        subtracted from the horizontal velocity so that the vehicle, which flies the setpoint plus
+        the drift, moves along the commanded course at the commanded speed.
 
     Examples
     --------
@@ -192,8 +196,8 @@ def velocity_setpoint(
     vn = speed_m_s * math.sin(course_cmd)
     vx_ned, vy_ned, _ = frames.vel_ned_from_enu(ve, vn, 0.0)
     return VelocitySetpoint(
-        vx_ned_m_s=vx_ned,
-        vy_ned_m_s=vy_ned,
+        vx_ned_m_s=vx_ned - drift_ned_m_s[0],
+        vy_ned_m_s=vy_ned - drift_ned_m_s[1],
         vz_ned_m_s=hold.vz_ned_m_s(alt_m),
         yaw_rate_ned_rad_s=frames.yaw_rate_ned_from_enu(omega_enu_rad_s),
         course_cmd_enu_rad=course_cmd,

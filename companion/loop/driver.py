@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
+from companion.guidance.drift import DriftEstimator
 from companion.guidance.factory import make_law
 from companion.guidance.profiled import ProfiledGuidance
 from companion.guidance.types import GuidanceLaw
@@ -80,6 +81,8 @@ class TickDriver:
         self.coast_since_s: float | None = None
         self.coast_ticks = 0
         self.pending: PendingStep | None = None
+        # The velocity estimate's drift, fed by every tick's sample (companion.guidance.drift).
+        self.drift = DriftEstimator(config.drift_tc_s) if config.compensates_drift else None
 
     # ------------------------------------------------------------------ the inputs of a tick
 
@@ -88,7 +91,7 @@ class TickDriver:
         """The next tick as a call with the carried state bound now (to run here or in a worker)."""
         call = functools.partial(compute_tick, self.guidance, self.ticks_run, t_s, sample, sample_age_s,
                                  self.config, yaw_ned_rad=yaw_ned_rad, prev_course_rad=self.prev_course_rad,
-                                 prev_course_cmd_rad=self.prev_course_cmd_rad)
+                                 prev_course_cmd_rad=self.prev_course_cmd_rad, drift=self.drift)
         self.ticks_run += 1
         return call
 
@@ -101,7 +104,7 @@ class TickDriver:
         """
         return compute_tick(self.guidance, tick, t_s, sample, sample_age_s, self.config,
                             yaw_ned_rad=yaw_ned_rad, prev_course_rad=prev_course_rad,
-                            prev_course_cmd_rad=prev_course_cmd_rad)
+                            prev_course_cmd_rad=prev_course_cmd_rad, drift=self.drift)
 
     # ------------------------------------------------------------------ the rules
 

@@ -64,7 +64,7 @@ from companion.loop.health import HealthMonitor, HealthOptions, turn_allowance_m
 from companion.loop.profiles import AutopilotProfile, profile_for
 from companion.loop.scheduler import Clock, MonotonicClock
 from companion.loop.session import LinkSession, Status, result_text
-from companion.loop.tick import DEFAULT_STALE_S, TickConfig
+from companion.loop.tick import DEFAULT_DRIFT_TC_S, DEFAULT_STALE_S, TickConfig
 from companion.mission.model import ON_FINISH, Mission
 from companion.mission.placement import OriginShift, onto_autopilot_origin
 from companion.sim.metrics import profile_errors, tracking_metrics
@@ -106,6 +106,7 @@ class FlyOptions:
     max_coast_turn_s: float = 0.3  # coasting keeps turning this long (loop clock), then flies straight
     attitude_rate_hz: float = 20.0
     origin_timeout_s: float = 10.0  # geodetic missions: wait this long for GPS_GLOBAL_ORIGIN
+    drift_tc_s: float = DEFAULT_DRIFT_TC_S  # the velocity estimate's drift compensated over this long; 0: off
     health: HealthOptions = HealthOptions()
 
     def __post_init__(self) -> None:
@@ -122,6 +123,8 @@ class FlyOptions:
             raise CompanionError(f"--on-finish: expected one of {', '.join(ON_FINISH)}, got {self.on_finish!r}")
         if not (0 < self.max_bank_deg < 90):
             raise CompanionError(f"--max-bank-deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
+        if not (isinstance(self.drift_tc_s, (int, float)) and math.isfinite(self.drift_tc_s) and self.drift_tc_s >= 0):
+            raise CompanionError(f"--drift-tc-s: expected a number >= 0 (0: off), got {self.drift_tc_s!r}")
 
 
 class _Terminate(BaseException):
@@ -285,7 +288,8 @@ class FlightRunner:
             output = "attitude" if s.link.info.vehicle == "plane" else "velocity"
         config = TickConfig(speed_m_s=self.mission.speed_m_s, rate_hz=self.opt.rate_hz,
                             altitude_m=self.mission.altitude_m, stale_s=self.opt.stale_s, output=output,
-                            max_bank_deg=self.opt.max_bank_deg, profile=self.mission.profile)
+                            max_bank_deg=self.opt.max_bank_deg, profile=self.mission.profile,
+                            drift_tc_s=self.opt.drift_tc_s)
         if config.output == "attitude" and self._on_finish_action() == "land":
             raise FlightAborted("--on-finish land is not available for a fixed-wing flight; use rtl or loiter")
         return config

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 from companion.geometry import frames
+from companion.guidance.drift import DriftEstimator
 from companion.guidance.types import GuidanceOutput, VehicleState, frozen_maker
 from companion.io.setpoints import (
     AltitudeHold,
@@ -59,6 +60,9 @@ from companion.io.state import PositionSample
 
 #: Position older than this (s) -> hold: ``companion fly --stale-s``'s default, replay's assumption.
 DEFAULT_STALE_S = 0.3
+#: ``companion fly --drift-tc-s``'s default: the velocity estimate's drift, low-passed over this
+#: long (s), is compensated (:mod:`companion.guidance.drift`); 0 turns it off.
+DEFAULT_DRIFT_TC_S = 0.0
 
 PHASE_CODES = {"midcourse": 0, "close_range": 1, "finished": 2, "hold": 3}
 PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}
@@ -96,12 +100,16 @@ DEBUG_FIELDS = (
     "debug_layout",          # 27 DEBUG_LAYOUT (NaN padding in logs written before this field)
     "yaw_ned_rad",           # 28 the ATTITUDE yaw this tick was given (NaN for None)
     "rate_hz",               # 29 the loop rate the tick was computed for (its dt is 1 / rate), Hz
+    "drift_n_m_s",           # 30 the velocity estimate's drift the tick compensated, north (NaN: off)
+    "drift_e_m_s",           # 31 ... east
+    "drift_tc_s",            # 32 the drift estimate's time constant (TickConfig.drift_tc_s; 0: off)
 )
 #: Value of the ``debug_layout`` field of the layout written now; a log's value says which of the
 #: later fields it holds (older logs: NaN padding there).
-DEBUG_LAYOUT = 3
+DEBUG_LAYOUT = 4
 LAYOUT_WITH_YAW = 2  # from this layout on, field 28 holds the tick's yaw
 LAYOUT_WITH_RATE = 3  # from this layout on, field 29 holds the loop rate
+LAYOUT_WITH_DRIFT = 4  # from this layout on, fields 30-32 hold the drift compensation
 
 
 @dataclass(frozen=True)
@@ -121,6 +129,7 @@ class TickConfig:
     max_course_lead_rad: float = math.pi / 4
     gathering_fraction: float = 0.5
     profile: object = None  # the mission's PathProfile (altitude and speed along the path), or None
+    drift_tc_s: float = 0.0  # time constant of the velocity estimate's drift compensation (s); 0: off
 
     def __post_init__(self) -> None:
         for name in ("speed_m_s", "rate_hz", "stale_s", "max_bank_deg", "alt_gain_1_s", "max_climb_m_s"):
@@ -131,6 +140,14 @@ class TickConfig:
             raise ValueError(f"output: expected 'velocity' or 'attitude', got {self.output!r}")
         if not (0 < self.max_bank_deg < 90):
             raise ValueError(f"max_bank_deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
+        if not (math.isfinite(self.drift_tc_s) and self.drift_tc_s >= 0):
+            raise ValueError(f"drift_tc_s: expected a finite number >= 0, got {self.drift_tc_s!r}")
+
+    @property
+    def compensates_drift(self) -> bool:
+        """Velocity output with a drift time constant: the ticks estimate and compensate the
+        velocity estimate's drift (:mod:`companion.guidance.drift`)."""
+        return self.output == "velocity" and self.drift_tc_s > 0
 
     def gathering(self, sample: PositionSample) -> bool:
         """Velocity output and slower than ``gathering_fraction`` of the mission speed: hovering or
@@ -170,6 +187,9 @@ class TickResult:
     prev_course_rad: float = math.nan
     yaw_ned_rad: float = math.nan  # the attitude yaw the tick was given (NaN: none)
     rate_hz: float = math.nan  # the loop rate the tick was computed for (TickConfig.rate_hz)
+    drift_n_m_s: float = math.nan  # the drift compensated (NED north, east; NaN: not compensating)
+    drift_e_m_s: float = math.nan
+    drift_tc_s: float = math.nan  # the drift estimate's time constant (TickConfig.drift_tc_s)
 
     @property
     def phase_code(self) -> int:
@@ -203,14 +223,19 @@ def _gathering_course(config: TickConfig, sample: PositionSample, yaw_ned_rad: f
 
 
 def course_from_sample(sample: PositionSample | None, yaw_ned_rad: float | None, prev_course_rad: float,
-                       min_speed_m_s: float) -> float:
+                       min_speed_m_s: float, drift_ned_m_s: tuple[float, float] = (0.0, 0.0)) -> float:
     """Course (ENU) from the ground velocity; yaw, then the previous course, when slow (or no sample).
+
+    The ground velocity is the reported one plus ``drift_ned_m_s``, the velocity estimate's drift
+    (north, east) where the tick compensates it.
 
     The one definition of this rule: the ticks, the course before the first tick and the holds
     streamed before the path starts all use it.
     """
-    if sample is not None and math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) >= min_speed_m_s:
-        return frames.course_enu_from_vel_ned(sample.vx_ned_m_s, sample.vy_ned_m_s)
+    if sample is not None:
+        vn, ve = sample.vx_ned_m_s + drift_ned_m_s[0], sample.vy_ned_m_s + drift_ned_m_s[1]
+        if math.hypot(vn, ve) >= min_speed_m_s:
+            return frames.course_enu_from_vel_ned(vn, ve)
     if yaw_ned_rad is not None and math.isfinite(yaw_ned_rad):
         return frames.course_enu_from_ned(yaw_ned_rad)
     return prev_course_rad
@@ -226,6 +251,7 @@ def compute_tick(
     yaw_ned_rad: float | None = None,
     prev_course_rad: float = 0.0,
     prev_course_cmd_rad: float | None = None,
+    drift: DriftEstimator | None = None,
 ) -> TickResult:
     """Run one tick: newest position sample -> VehicleState -> guidance.step -> setpoint.
 
@@ -241,6 +267,8 @@ def compute_tick(
     prev_course_rad : course used on the previous tick (last fallback).
     prev_course_cmd_rad : commanded course of the previous tick (``TickResult.course_cmd_rad``),
         None/NaN to start from the measured course.
+    drift : the flight's drift estimator (``TickDriver.drift``), fed with every sample a tick
+        uses, when ``config.compensates_drift``; None otherwise.
     """
     alt_m = -sample.z_ned_m if sample is not None else math.nan
     hold_reason = ""
@@ -253,14 +281,19 @@ def compute_tick(
     output = None
     course = prev_course_rad
     course_cmd = math.nan
+    drift_ned = (math.nan, math.nan)
     if hold_reason:
         # Stale or missing data: not even the altitude term uses it (vz = 0).
         setpoint = hold_for(config, alt_m, False, prev_course_rad)
         phase = "hold"
     else:
+        if drift is not None and config.compensates_drift:
+            drift_ned = drift.update(sample.time_s, sample.x_ned_m, sample.y_ned_m,
+                                     sample.vx_ned_m_s, sample.vy_ned_m_s)
         course = _gathering_course(config, sample, yaw_ned_rad, prev_course_cmd_rad)
         if course is None:
-            course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s)
+            course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s,
+                                        _compensated(drift_ned))
         x_enu, y_enu, _ = frames.enu_from_ned(sample.x_ned_m, sample.y_ned_m, sample.z_ned_m)
         state = _vehicle_state(x_m=x_enu, y_m=y_enu, course_rad=course, speed_m_s=config.speed_m_s)
         output = guidance.step(t_s, state)
@@ -277,7 +310,7 @@ def compute_tick(
                 lead = max(-config.max_course_lead_rad, min(config.max_course_lead_rad, lead))
                 base = frames.wrap_pi(course + lead)
             speed, hold = _targets(config, output.s_proj_m)
-            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold)
+            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _compensated(drift_ned))
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
@@ -285,7 +318,13 @@ def compute_tick(
                         setpoint=setpoint, sample=sample, sample_age_s=sample_age_s, course_rad=course,
                         course_cmd_rad=course_cmd, prev_course_cmd_rad=prev_cmd, prev_course_rad=prev_course_rad,
                         yaw_ned_rad=math.nan if yaw_ned_rad is None else float(yaw_ned_rad),
-                        rate_hz=float(config.rate_hz))
+                        rate_hz=float(config.rate_hz), drift_n_m_s=drift_ned[0], drift_e_m_s=drift_ned[1],
+                        drift_tc_s=float(config.drift_tc_s))
+
+
+def _compensated(drift_ned: tuple[float, float]) -> tuple[float, float]:
+    """The drift a tick compensates: its estimate, or none (NaN: not compensating)."""
+    return drift_ned if math.isfinite(drift_ned[0]) else (0.0, 0.0)
 
 
 def _targets(config: TickConfig, s_m: float) -> tuple[float, object]:
@@ -348,7 +387,8 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
         return _attitude(config, a_cmd, last.course_rad, alt_m, last.output.s_proj_m)
     base = course_cmd_rad if math.isfinite(course_cmd_rad) else last.course_rad
     speed, hold = _targets(config, last.output.s_proj_m)
-    return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold)
+    return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold,
+                             _compensated((last.drift_n_m_s, last.drift_e_m_s)))
 
 
 def _float32(x: float) -> float:
@@ -408,6 +448,9 @@ def debug_row(result: TickResult) -> list[float]:
         "debug_layout": float(DEBUG_LAYOUT),
         "yaw_ned_rad": float(result.yaw_ned_rad),
         "rate_hz": float(result.rate_hz),
+        "drift_n_m_s": float(result.drift_n_m_s),
+        "drift_e_m_s": float(result.drift_e_m_s),
+        "drift_tc_s": float(result.drift_tc_s),
     }
     if len(values) != len(DEBUG_FIELDS):
         raise AssertionError(f"debug_row: {sorted(set(values) ^ set(DEBUG_FIELDS))}")

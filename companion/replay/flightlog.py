@@ -35,7 +35,7 @@ from companion.io.state import GlobalOrigin, global_origin_from_wire
 from companion.io.link import MAV_AUTOPILOT_INVALID, MAV_PARAM_TYPE_REAL32
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
-from companion.loop.tick import DEBUG_FIELDS, LAYOUT_WITH_RATE, LAYOUT_WITH_YAW, PHASE_CODES
+from companion.loop.tick import DEBUG_FIELDS, LAYOUT_WITH_DRIFT, LAYOUT_WITH_RATE, LAYOUT_WITH_YAW, PHASE_CODES
 from companion.replay.progress import ByteProgress
 
 GUIDANCE_ARRAY_NAME = "guidance"
@@ -350,6 +350,17 @@ def recorded_rate_hz(ticks: list[LoggedTick]) -> float | None:
             if math.isfinite(rate) and rate > 0:
                 return rate
     return None
+
+
+def recorded_drift_tc_s(ticks: list[LoggedTick]) -> float:
+    """The drift compensation's time constant the flight's ticks record (``debug_layout`` >= 4;
+    0: off), 0 for older logs (they predate it)."""
+    for tk in ticks:
+        row = tk.debug
+        if row is not None and row[DEBUG_INDEX["debug_layout"]] >= LAYOUT_WITH_DRIFT:
+            tc = float(row[DEBUG_INDEX["drift_tc_s"]])
+            return tc if math.isfinite(tc) and tc > 0 else 0.0
+    return 0.0
 
 
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:

@@ -57,6 +57,7 @@ from companion.replay.flightlog import (
     LoggedTick,
     phase_name,
     read_flight,
+    recorded_drift_tc_s,
     recorded_rate_hz,
 )
 from companion.replay.progress import ByteProgress
@@ -154,14 +155,15 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
 
 
 def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
-                    stale_s: float = DEFAULT_STALE_S) -> TickConfig:
+                    stale_s: float = DEFAULT_STALE_S, drift_tc_s: float = 0.0) -> TickConfig:
     """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
-    (``"velocity"`` or ``"attitude"``) and the stale-position limit ``stale_s``.
+    (``"velocity"`` or ``"attitude"``), the stale-position limit ``stale_s`` and the drift
+    compensation's time constant ``drift_tc_s`` (0: off).
 
     ``--max-bank-deg`` is not recorded in the log; replay uses its default (35 deg).
     """
     return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                      output=output, stale_s=stale_s, profile=mission.profile)
+                      output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s)
 
 
 def flight_stale_s(flight: LoggedFlight) -> float:
@@ -273,7 +275,8 @@ def replay_flight(
     mission = in_flight_frame(flight, mission)
     rate_hz = config.rate_hz if config is not None else flight_rate_hz(flight, mission)
     if config is None and flight.kind == "companion":
-        config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight))
+        config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight),
+                                 recorded_drift_tc_s(flight.ticks))
     config = config or tick_config_for(mission, rate_hz, flight_output(flight))
     guidance = guidance_factory(mission, rate_hz)
     replay = _Replay(flight, mission, tolerance, config, guidance)

@@ -109,14 +109,16 @@ class _Vehicle:
     alt: float
     dt: float
     alpha: float  # the velocity's first-order lag over one tick (1: none)
+    drift_en: tuple[float, float] = (0.0, 0.0)  # the velocity estimate's error (ENU): the position moves by it too
 
     @classmethod
-    def at_start(cls, mission: Mission, offset_m: tuple[float, float], dt: float, lag_s: float) -> _Vehicle:
+    def at_start(cls, mission: Mission, offset_m: tuple[float, float], dt: float, lag_s: float,
+                 drift_en: tuple[float, float] = (0.0, 0.0)) -> _Vehicle:
         """At ``offset_m`` from the path's start, flying along it at the mission's speed."""
         (x0, y0), heading = mission.path.start_xy_m, mission.path.start_heading_rad
         speed = mission.speed_m_s
         return cls(x0 + offset_m[0], y0 + offset_m[1], speed * math.cos(heading), speed * math.sin(heading),
-                   mission.altitude_m, dt, 1.0 - math.exp(-dt / lag_s) if lag_s > 0 else 1.0)
+                   mission.altitude_m, dt, 1.0 - math.exp(-dt / lag_s) if lag_s > 0 else 1.0, drift_en)
 
     def follow(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
         """One tick of the vehicle under the setpoint just sent."""
@@ -131,8 +133,8 @@ class _Vehicle:
             cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
             self.ve += self.alpha * (cmd_ve - self.ve)
             self.vn += self.alpha * (cmd_vn - self.vn)
-        self.x += self.ve * self.dt
-        self.y += self.vn * self.dt
+        self.x += (self.ve + self.drift_en[0]) * self.dt
+        self.y += (self.vn + self.drift_en[1]) * self.dt
 
 
 def _write_telemetry(tlog: TlogWriter, autopilot: PacketEncoder, companion: PacketEncoder, k: int, rate_hz: float,
@@ -201,6 +203,8 @@ def write_synthetic_flight(
     dropout_s: tuple[float, float] | None = None,
     stale_s: float = DEFAULT_STALE_S,
     coast_ticks: int = 0,
+    drift_en_m_s: tuple[float, float] = (0.0, 0.0),
+    drift_tc_s: float = 0.0,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -219,6 +223,9 @@ def write_synthetic_flight(
     coast_ticks : when > 0, every step that re-optimises k1, k2 is taken to last that many extra
         ticks, as a slow step in the flight loop's worker: it coasts, then its row is recorded
         late and that tick is computed afresh (:meth:`TickDriver.run_tick`).
+    drift_en_m_s : the vehicle's velocity-estimate error (ENU): it flies the reported velocity plus
+        this, as a copter whose estimate drifts (:mod:`companion.guidance.drift`).
+    drift_tc_s : the loop's drift compensation (the runner's ``--drift-tc-s``; 0: off).
 
     Returns a dict with ``ticks``, ``records`` and ``generate_s``.
     """
@@ -228,11 +235,11 @@ def write_synthetic_flight(
     write_mission_beside(tlog_path, mission.source_text)
     guidance = make_guidance(mission, rate_hz)
     config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                        output=output, stale_s=stale_s, profile=mission.profile)
+                        output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s)
     dt = 1.0 / rate_hz
     autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
 
-    v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s)
+    v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s)
     driver = TickDriver(guidance, config, mission.path.start_heading_rad)
     n_ticks = int(round(duration_s * rate_hz))
     slow_steps = functools.partial(_SlowStep.run, coast_ticks)
