@@ -62,7 +62,7 @@ from companion.io.state import PositionSample
 DEFAULT_STALE_S = 0.3
 #: ``companion fly --drift-tc-s``'s default: the velocity estimate's drift, low-passed over this
 #: long (s), is compensated (:mod:`companion.guidance.drift`); 0 turns it off.
-DEFAULT_DRIFT_TC_S = 0.0
+DEFAULT_DRIFT_TC_S = 0.3
 
 PHASE_CODES = {"midcourse": 0, "close_range": 1, "finished": 2, "hold": 3}
 PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}
