@@ -40,3 +40,13 @@ def test_a_failed_connection_is_one_line_and_leaves_no_file(connect, words, tmp_
     for noise in ("Traceback", "Errno", "Exception", "sleeping", "invalid literal"):
         assert noise not in err
     assert list(tmp_path.rglob("*")) == []  # no logs/, no empty tlog, no mission copy
+
+
+def test_a_negative_drift_time_constant_is_one_line_before_any_connection(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    rc = main(["fly", MISSION, "--connect", f"udpin:127.0.0.1:{free_udp_port()}", "--drift-tc-s", "-1",
+               "--heartbeat-timeout-s", "0.5", "--quiet"])
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1 and "--drift-tc-s" in lines[0] and ">= 0" in lines[0], err
+    assert list(tmp_path.rglob("*")) == []
