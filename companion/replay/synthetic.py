@@ -195,16 +195,13 @@ class _SlowStep:
 def write_synthetic_flight(
     tlog_path: str | Path,
     mission: Mission | str = RACETRACK_MISSION,
-    duration_s: float = 60.0,
-    rate_hz: float = 50.0,
+    duration_s: float = 60.0, rate_hz: float = 50.0,
     start_offset_m: tuple[float, float] = (0.0, 3.0),
     vehicle_lag_s: float = 0.2,
     output: str = "velocity",
-    dropout_s: tuple[float, float] | None = None,
-    stale_s: float = DEFAULT_STALE_S,
+    dropout_s: tuple[float, float] | None = None, stale_s: float = DEFAULT_STALE_S,
     coast_ticks: int = 0,
-    drift_en_m_s: tuple[float, float] = (0.0, 0.0),
-    drift_tc_s: float = 0.0,
+    drift_en_m_s: tuple[float, float] = (0.0, 0.0), drift_tc_s: float = 0.0,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -223,9 +220,8 @@ def write_synthetic_flight(
     coast_ticks : when > 0, every step that re-optimises k1, k2 is taken to last that many extra
         ticks, as a slow step in the flight loop's worker: it coasts, then its row is recorded
         late and that tick is computed afresh (:meth:`TickDriver.run_tick`).
-    drift_en_m_s : the vehicle's velocity-estimate error (ENU): it flies the reported velocity plus
-        this, as a copter whose estimate drifts (:mod:`companion.guidance.drift`).
-    drift_tc_s : the loop's drift compensation (the runner's ``--drift-tc-s``; 0: off).
+    drift_en_m_s, drift_tc_s : the vehicle flies the reported velocity plus ``drift_en_m_s`` (ENU),
+        a drifting estimate; the loop compensates it over ``drift_tc_s`` (``--drift-tc-s``; 0: off).
 
     Returns a dict with ``ticks``, ``records`` and ``generate_s``.
     """
