@@ -33,7 +33,11 @@ Rules applied here (and therefore identically in flight and in replay):
   ``dt / tau`` (a 0.02 s tick on a 0.3 s velocity loop turns 15 times too slowly). The commanded
   course is kept within ``max_course_lead_rad`` of the measured one (no wind-up when the vehicle
   cannot follow) and restarts from the measured course after a hold. Carry
-  ``TickResult.course_cmd_rad`` into the next call as ``prev_course_cmd_rad``.
+  ``TickResult.course_cmd_rad`` into the next call as ``prev_course_cmd_rad``;
+* with ``TickConfig.drift_tc_s`` > 0 (velocity output), every fresh sample feeds the flight's
+  :class:`~companion.guidance.drift.DriftEstimator`: the course handed to the guidance is that of
+  the reported velocity plus the estimate, and the velocity setpoint is sent less the estimate
+  (the vehicle flies its setpoint plus its estimate's drift; ``docs/flying.md``).
 """
 
 from __future__ import annotations
@@ -301,6 +305,7 @@ def compute_tick(
         a_cmd = float(output.a_cmd_m_s2)
         if phase == "finished" or not math.isfinite(a_cmd):
             setpoint = hold_for(config, alt_m, True, course, output.s_proj_m)
+            drift_ned = (math.nan, math.nan)  # a hold compensates nothing
         elif config.output == "attitude":
             setpoint = _attitude(config, a_cmd, course, alt_m, output.s_proj_m)
         else:
