@@ -341,26 +341,29 @@ def _setpoint_ticks(pairs: list[tuple]) -> list[LoggedTick]:
             for i, (time_s, (sample_time, sample), yaw, sp) in enumerate(pairs)]
 
 
-def recorded_rate_hz(ticks: list[LoggedTick]) -> float | None:
-    """The loop rate the flight's ticks record (``debug_layout`` >= 3), or None (older logs)."""
+def _recorded(ticks: list[LoggedTick], layout: int, field: str) -> float | None:
+    """The first positive ``field`` the ticks of ``debug_layout`` >= ``layout`` record, or None.
+
+    The record is float32: the value comes back as its 7 significant digits, so that a setting
+    typed as 0.3 replays as 0.3, not 0.30000001."""
     for tk in ticks:
         row = tk.debug
-        if row is not None and row[DEBUG_INDEX["debug_layout"]] >= LAYOUT_WITH_RATE:
-            rate = float(row[DEBUG_INDEX["rate_hz"]])
-            if math.isfinite(rate) and rate > 0:
-                return rate
+        if row is not None and row[DEBUG_INDEX["debug_layout"]] >= layout:
+            value = float(row[DEBUG_INDEX[field]])
+            if math.isfinite(value) and value > 0:
+                return float(f"{value:.7g}")
     return None
 
 
+def recorded_rate_hz(ticks: list[LoggedTick]) -> float | None:
+    """The loop rate the flight's ticks record (``debug_layout`` >= 3), or None (older logs)."""
+    return _recorded(ticks, LAYOUT_WITH_RATE, "rate_hz")
+
+
 def recorded_drift_tc_s(ticks: list[LoggedTick]) -> float:
-    """The drift compensation's time constant the flight's ticks record (``debug_layout`` >= 4;
-    0: off), 0 for older logs (they predate it)."""
-    for tk in ticks:
-        row = tk.debug
-        if row is not None and row[DEBUG_INDEX["debug_layout"]] >= LAYOUT_WITH_DRIFT:
-            tc = float(row[DEBUG_INDEX["drift_tc_s"]])
-            return tc if math.isfinite(tc) and tc > 0 else 0.0
-    return 0.0
+    """The drift compensation's time constant the flight's ticks record (``debug_layout`` >= 4),
+    0 when it was off or the log predates it."""
+    return _recorded(ticks, LAYOUT_WITH_DRIFT, "drift_tc_s") or 0.0
 
 
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:
