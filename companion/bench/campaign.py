@@ -29,7 +29,7 @@ from typing import Callable, Iterable, Iterator, Sequence
 from companion.errors import CompanionError
 
 #: Row values written as null when not finite (JSON has no NaN) and read back as NaN.
-NAN_KEYS = ("d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "reach_s")
+NAN_KEYS = ("d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "reach_s", "touch_s")
 #: The one line shown when the extra is missing.
 INSTALL_HINT = "install companion[campaign]"
 

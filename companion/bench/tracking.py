@@ -29,10 +29,13 @@ Runs: every (scenario, model, law, setting) is one task of a campaign
 streams the rows to a file and resumes from it.
 
 Measurement (the same for every law, from the simulated trajectory, not from what each law
-reports): ``d`` is the signed distance to the closest path point. ``reach_s`` is the first time
+reports): ``d`` is the signed distance to the closest path point. ``touch_s`` is the first time
 ``|d| <= REACH_TOL_M``; ``d_rms_m``, ``d_max_m``, ``a_rms_m_s2`` and ``a_max_m_s2``
-(:func:`companion.sim.metrics.tracking_metrics`) cover the flight from that moment on, so a far
-start's approach is judged by ``reach_s`` and the tracking by the rest. Open paths end for every
+(:func:`companion.sim.metrics.tracking_metrics`) cover the flight from that moment on, so an
+overshoot after touching the path is charged to the tracking. ``reach_s`` is the first time from
+which ``|d|`` stays within ``REACH_TOL_M`` for ``REACH_HOLD_S`` (or to the end of the flight): a
+flight that crosses the path at an angle and swings out beyond it has touched it, not reached it.
+A far start's approach is judged by ``reach_s`` and the tracking by the rest. Open paths end for every
 law when the closest point is ``END_MARGIN_M`` from the path end (or when the law finishes);
 closed paths are flown for the approach plus one lap.
 
@@ -59,6 +62,9 @@ from companion.bench.scenarios import (BENCH_A_MAX_M_S2, BENCH_LAG_S, BENCH_SPEE
 from companion.errors import CompanionError, MissionError
 
 REACH_TOL_M = 1.0
+REACH_HOLD_S = 2.0
+#: Bumped when what a row measures changes (2: ``reach_s`` entered to stay, ``touch_s``).
+MEASUREMENT_VERSION = 2
 END_MARGIN_M = 20.0
 SPEED_M_S = BENCH_SPEED_M_S  # the named scenarios' speed
 RATE_HZ = 50.0
@@ -170,10 +176,11 @@ class Task:
 
 
 def task_id(task: Task) -> str:
-    """Stable id of a run: the scenario's whole description, the model, the law and the setting."""
+    """Stable id of a run: the scenario's whole description, the model, the law and the setting,
+    and the version of the measurement (a row measured otherwise is not resumed as this one)."""
     import hashlib
 
-    text = json.dumps([spec_id(task.spec), task.model.name, task.law, task.setting])
+    text = json.dumps([spec_id(task.spec), task.model.name, task.law, task.setting, MEASUREMENT_VERSION])
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:20]
 
 
@@ -261,6 +268,23 @@ def fly_task(task: Task):
                           model=task.model.sim_model(sc), t_max_s=t_max)
 
 
+def first_stay_index(inside: np.ndarray, n_hold: int) -> int | None:
+    """The first sample from which ``inside`` holds for ``n_hold`` samples, or to the end; None if never.
+
+    >>> first_stay_index(np.array([0, 1, 1, 0, 1, 1, 1, 1], bool), 3)
+    4
+    >>> first_stay_index(np.array([0, 1, 0, 0, 1, 1], bool), 3)  # the last run lasts to the end
+    4
+    >>> first_stay_index(np.array([0, 0], bool), 1) is None
+    True
+    """
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], inside.astype(np.int8), [0]))))
+    for start, stop in zip(edges[::2], edges[1::2]):  # runs of True: [start, stop)
+        if stop - start >= n_hold or stop == inside.size:
+            return int(start)
+    return None
+
+
 def run_one(task: Task) -> dict:
     """Simulate one (scenario, model, law, setting) and measure it; returns one row."""
     from companion.sim.metrics import tracking_metrics
@@ -271,17 +295,20 @@ def run_one(task: Task) -> dict:
     path, res = fly_task(task)
     wall = time.perf_counter() - t0
     d = true_crosstrack_m(path, res.x_m, res.y_m)
-    reached = np.flatnonzero(np.abs(d) <= REACH_TOL_M)
+    inside = np.abs(d) <= REACH_TOL_M
+    touched = np.flatnonzero(inside)
     row = {"scenario": scenario_name, "model": model.name, "law": law, "setting": setting,
            "knob": KNOBS[law]}
-    if reached.size == 0:
+    if touched.size == 0:
         row.update(d_rms_m=math.nan, d_max_m=math.nan, a_rms_m_s2=math.nan, a_max_m_s2=math.nan,
-                   reach_s=math.nan)
+                   reach_s=math.nan, touch_s=math.nan)
     else:
-        i0 = int(reached[0])
+        i0 = int(touched[0])
         m = tracking_metrics(res.t_s[i0:], d[i0:], res.a_achieved_m_s2[i0:])  # what the vehicle flew
+        stay = first_stay_index(inside, int(round(REACH_HOLD_S * RATE_HZ)))
         row.update(d_rms_m=m["d_rms_m"], d_max_m=m["d_max_m"], a_rms_m_s2=m["a_rms_m_s2"],
-                   a_max_m_s2=m["a_max_m_s2"], reach_s=float(res.t_s[i0]))
+                   a_max_m_s2=m["a_max_m_s2"], touch_s=float(res.t_s[i0]),
+                   reach_s=float(res.t_s[stay]) if stay is not None else math.nan)
     row["duration_s"] = float(res.t_s[-1]) if res.t_s.size else 0.0
     row["wall_s"] = wall
     return row

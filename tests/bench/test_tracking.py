@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from bench_scenes import LinePath
-from companion.bench.tracking import (REFINE_LAMBDA_FLOOR_S4, front_at, pareto_front, refinement_settings, summarise,
-                                      true_crosstrack_m)
+from companion.bench.tracking import (REFINE_LAMBDA_FLOOR_S4, ModelSpec, Task, fly_task, front_at, named_spec,
+                                      pareto_front, refinement_settings, run_one, summarise, true_crosstrack_m)
 from companion.cli.main import main
 
 
@@ -136,3 +136,32 @@ def test_refine_flies_predictive_at_the_contested_accelerations(capsys, tmp_path
     # every refined lambda was asked for by a point below the front of the runs before it
     assert all(REFINE_LAMBDA_FLOOR_S4 <= lam <= 0.3 for lam in lams)
     assert main(["bench", "tracking", "--refine", "-1"]) == 2
+
+
+def test_reach_is_where_a_flight_enters_the_band_to_stay_touch_where_it_first_enters():
+    # From the far start, fixed L1 at 5 m swings through the path and out again (its mid-course
+    # hands over at an angle); ArduPilot's L1 at 3 s and predictive come in. For every run: the
+    # tracking window starts at touch_s, the first sample within 1 m; reach_s is the first
+    # sample from which |d| stays within 1 m for 2 s. Checked against the flown track.
+    sc = named_spec("far_start")
+    seen_swing = False
+    for law, setting in (("fixed_l1", 5.0), ("ap_l1", 3.0), ("predictive", 0.03)):
+        task = Task(sc, ModelSpec("lag"), law, setting)
+        row = run_one(task)
+        path, res = fly_task(task)
+        d = np.abs(true_crosstrack_m(path, res.x_m, res.y_m))
+        t = res.t_s
+        assert row["touch_s"] == pytest.approx(t[np.flatnonzero(d <= 1.0)[0]])
+        assert row["reach_s"] >= row["touch_s"]
+        stay = (t >= row["reach_s"] - 1e-9) & (t <= row["reach_s"] + 2.0 - 1e-9)
+        assert np.all(d[stay] <= 1.0)
+        between = (t >= row["touch_s"]) & (t < row["reach_s"] - 1e-9)
+        if row["reach_s"] > row["touch_s"]:
+            seen_swing = True
+            assert np.max(d[between]) > 1.0  # it left the band in between
+            # and no earlier 2 s stay: every start before reach_s leaves the band within 2 s
+            for i in np.flatnonzero(between & (d <= 1.0))[::25]:
+                assert np.any(d[(t >= t[i]) & (t <= t[i] + 2.0 - 1e-9)] > 1.0)
+        else:
+            assert row["d_max_m"] <= 1.0 or np.all(d[(t >= row["touch_s"]) & (t <= row["touch_s"] + 2.0 - 1e-9)] <= 1.0)
+    assert seen_swing
