@@ -53,8 +53,10 @@ Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
 Pointing away, that goal lies behind the beam: the law then turns round at the limit
 ``a_max`` (with none stated, at its bound ``2 V^2 / L``), never sharper than ``2 V^2 / l_min``
-(a copter near hover has no course to turn round from), and does not plan (:mod:`companion.guidance.capture`, our addition;
-``docs/guidance.md``, "Capture far from the path"). An
+(a copter near hover has no course to turn round from), and does not plan; nearer the path than
+that turn's radius it flies straight on first, until the turn runs into the path instead of
+across it (:mod:`companion.guidance.capture`, our addition; ``docs/guidance.md``, "Capture far
+from the path"). An
 open path is continued straight past its end, as the baselines do.
 
 Pure maths (numpy; scipy for the Riccati equation of the cost to go), deterministic: the same
@@ -71,7 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.guidance import rollout_kernel
-from companion.guidance.capture import capture_command_m_s2, capture_side
+from companion.guidance.capture import capture_command_m_s2, join_turn_m_s2, pursuit_capture_side
 from companion.guidance.path_frame import PathLike, frame_output, frame_samples, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
@@ -575,8 +577,6 @@ def _project_one(win: _Window, band: _Band, x_m: float, y_m: float,
     return int(i0[0]), float(d[0])
 
 
-#: Off the path by less than this, a capture turn ignores the closest point's side (only the goal's).
-CAPTURE_SIDE_MIN_OFFSET_M = 1.0
 
 
 # Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
@@ -723,6 +723,7 @@ class PredictiveGuidance:
         self._a_max = p.a_max_m_s2
         self.monitor = ModelMonitor(p.lag_s, p.a_max_m_s2) if p.adapt_model else None
         self._capture_side = 0  # the side of the capture turn (companion.guidance.capture), 0: none
+        self._capture_stage = ""  # "wait" (flying on before the turn), "turn", or "" (not decided)
         # The rollouts compiled (companion.guidance.rollout_kernel) when numba is installed; the
         # numpy ones otherwise, or with this set False. Compiled (or loaded) before the first tick.
         self._kernel = rollout_kernel.load()
@@ -950,33 +951,21 @@ class PredictiveGuidance:
         a_cmd = min(max(a + correction, -p.a_max_m_s2), p.a_max_m_s2)
         # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
         # is pointing away; turn round towards it at the limit instead of planning.
-        behind = capture_side(state.x_m, state.y_m, state.course_rad, gx, gy,
-                              f.tx, f.ty, self._capture_side)
-        if behind and not self._capture_side:
-            off_path = abs(f.crosstrack_m) > CAPTURE_SIDE_MIN_OFFSET_M
-            # A new capture off the path: turn towards the closest point if that is behind too.
-            # On the path the goal decides: the closest point's side is there the sign of an error
-            # of centimetres (of noise, on a real vehicle), and following it turned a vehicle
-            # started on the path facing across it the long way round.
-            p_behind = capture_side(state.x_m, state.y_m, state.course_rad, f.px_m, f.py_m, f.tx, f.ty,
-                                    0) if off_path else 0
-            going_its_way = math.cos(state.course_rad) * f.tx + math.sin(state.course_rad) * f.ty >= 0.0
-            if going_its_way and not p_behind:
-                # Not pointing away: the path ahead bends back within the look-ahead distance (a
-                # tight loop, a hairpin), and the pursuit with its plan follows it; a turn round
-                # here left a loop of a self-crossing path on the held-out bench (random_1119).
-                behind = 0
-            elif p_behind:
-                behind = p_behind
+        behind = pursuit_capture_side(state, f, gx, gy, self._capture_side)
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
         if self._capture_side:
-            # At the limit (none stated: 2 V^2 / L), no sharper than 2 V^2 / l_min (near hover, course is noise).
+            # At the limit (none stated: 2 V^2 / L), no sharper than 2 V^2 / l_min (near hover, course is
+            # noise); near the path, flying on first (companion.guidance.capture.join_turn_m_s2).
             look = p.l_min_m if math.isfinite(self._a_max) else self._look_m
-            a_cmd = self._capture_side * min(self._a_max, capture_command_m_s2(1, max(state.speed_m_s, MIN_SPEED_M_S), look))
+            a_turn = min(self._a_max, capture_command_m_s2(1, max(state.speed_m_s, MIN_SPEED_M_S), look))
+            a_turn, self._capture_stage = join_turn_m_s2(self.path, state, f, self._capture_side, a_turn, self._lag_s,
+                                                         self._capture_stage)
+            a_cmd = self._capture_side * a_turn
             correction = 0.0
             self._plan = np.zeros(self._segments)
         elif ended:
+            self._capture_stage = ""
             self._next_reopt_t = -math.inf  # plan afresh on the next tick
         self._last_cmd = a_cmd
         extra = {"lookahead_m": l_eff, "correction_m_s2": correction, "a_hat_m_s2": self._a_hat,

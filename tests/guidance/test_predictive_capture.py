@@ -227,3 +227,42 @@ def test_near_hover_facing_away_the_turn_round_is_the_pursuits_bound_at_its_shor
     # at cruise speed the same turn is at the limit: 2 V^2 / l_min = 64 m/s^2 at 9.8 m/s is above it
     fast = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.35, a_max_m_s2=9.8))
     assert abs(fast.step(0.0, VehicleState(0.0, 0.0, math.radians(175.0), 9.8)).a_cmd_m_s2) == pytest.approx(9.8)
+
+
+def test_pointing_away_nearer_than_a_turn_radius_it_flies_on_before_turning():
+    # 3 m right of an eastward line, pointing away from it and 10 deg back against its direction
+    # (course -100 deg), 10 m/s, 5 m/s^2, 0.05 s lag. The closest point lies behind on the right,
+    # so the turn round is to the right, radius R = V^2 / a_max = 20 m; started at once, its centre
+    # would be 3 - R sin 10 deg = -0.47 m, i.e. 0.47 m left of the line, and the circle would run
+    # east 20.47 m beyond it. Flown on first, the centre moves out with the vehicle; the turn
+    # begins once the lagged circle (begun V tau = 0.5 m further on) runs east along the line:
+    # centre at y = -R, i.e. at y_lead = -R - R sin 10 deg, y = y_lead + V tau sin 80 deg.
+    path = LinePath(x0=-200.0, length_m=1000.0)
+    v, tau, a_max = 10.0, 0.05, 5.0
+    h = math.radians(-100.0)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=tau, a_max_m_s2=a_max))
+    res = simulate(path, law, VehicleState(0.0, -3.0, h, v), GuidanceParams(speed_m_s=v, rate_hz=50.0),
+                   model=LagModel(tau, a_max), t_max_s=25.0, keep_outputs=True)
+    r = v * v / a_max
+    y_turn = -r - r * math.sin(math.radians(10.0)) + v * tau * math.sin(math.radians(80.0))  # -22.98 m
+    turn = int(np.flatnonzero(np.abs(res.a_cmd_m_s2) > 0.0)[0])
+    assert res.y_m[turn] == pytest.approx(y_turn, abs=v / 50.0)  # within one tick's flight
+    assert res.a_cmd_m_s2[turn] < 0.0 and res.outputs[0].extra["capture_side"] == -1  # right
+    assert np.max(res.y_m) < 1.0  # turned at once, it swept about 20 m past the line
+    assert -np.min(res.y_m) <= 2.0 * r + r * math.sin(math.radians(10.0)) + v * tau + 0.5
+    assert abs(res.y_m[-1]) < 0.05 and math.cos(res.course_rad[-1]) > 0.99  # on it, going east
+
+
+def test_on_the_path_at_hover_the_capture_never_waits():
+    # A copter starting from hover on the path (20 cm right of it), its velocity noise pointing
+    # away from it and 10 deg back against it at 0.5 m/s (the goal behind the beam: a capture):
+    # "away" is noise there, so the turn round begins at once (at 2 V^2 / l_min, 0.17 m/s^2)
+    # instead of flying on along the noise. 1.2 m off, within that turn's 1.5 m radius, it waits.
+    path = LinePath(x0=-50.0, length_m=500.0)
+    waiting = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
+    off = waiting.step(0.0, VehicleState(0.0, -1.2, math.radians(-100.0), 0.5))
+    assert off.extra["capture_side"] != 0 and off.a_cmd_m_s2 == 0.0
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
+    out = law.step(0.0, VehicleState(0.0, -0.2, math.radians(-100.0), 0.5))
+    assert out.extra["capture_side"] != 0
+    assert abs(out.a_cmd_m_s2) == pytest.approx(2.0 * 0.5 ** 2 / PredictiveParams().l_min_m)
