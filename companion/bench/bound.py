@@ -11,8 +11,8 @@ Horizon and windowing: the bound is over a fixed horizon from the start, so ever
 a *whole-flight* figure over the same horizon: the shortest of the laws' runs on the scenario
 (whole ticks), each run's first ``N`` commands replayed through the same model
 (:func:`companion.sim.optimal.whole_flight_metrics`), ``a`` the flown acceleration. The tracking
-bench's ``d_rms_m`` / ``a_rms_m_s2`` start at the first touch of the path instead; for a start on the path the
-two nearly coincide (docs/benchmarks.md, "The physical limit").
+bench's ``d_rms_m`` / ``a_rms_m_s2`` start at the first touch of the path instead; for a start on
+the path the two nearly coincide (docs/benchmarks.md, "The physical limit").
 """
 
 from __future__ import annotations

@@ -35,9 +35,9 @@ reports): ``d`` is the signed distance to the closest path point. ``touch_s`` is
 overshoot after touching the path is charged to the tracking. ``reach_s`` is the first time from
 which ``|d|`` stays within ``REACH_TOL_M`` for ``REACH_HOLD_S`` (or to the end of the flight): a
 flight that crosses the path at an angle and swings out beyond it has touched it, not reached it.
-A far start's approach is judged by ``reach_s`` and the tracking by the rest. Open paths end for every
-law when the closest point is ``END_MARGIN_M`` from the path end (or when the law finishes);
-closed paths are flown for the approach plus one lap.
+A far start's approach is judged by ``reach_s`` and the tracking by the rest. Open paths end for
+every law when the closest point is ``END_MARGIN_M`` from the path end (or when the law
+finishes); closed paths are flown for the approach plus one lap.
 
 Summary: per scenario and model, at the ``a_rms`` of the predictive law's default tuning, each
 law's front is interpolated and the law with the lowest ``d_rms`` named, with its margin.

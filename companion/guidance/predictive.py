@@ -577,8 +577,6 @@ def _project_one(win: _Window, band: _Band, x_m: float, y_m: float,
     return int(i0[0]), float(d[0])
 
 
-
-
 # Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
 MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 MONITOR_LAG_FLOOR_S = 0.2  # the candidates of a nominal lag of 0 (ideal: unknown) are multiples of this
