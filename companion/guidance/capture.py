@@ -197,7 +197,7 @@ def join_turn_m_s2(path: PathLike, state: VehicleState, frame: PathFrame, side: 
     >>> join_turn_m_s2(line, *near(-25.0), -1, 5.0, 0.0, "")  # beyond R: at once
     (5.0, 'turn')
     """
-    speed = max(state.speed_m_s, 1e-3)
+    speed = state.speed_m_s  # at rest the radius is 0: the turn starts at once
     radius = speed * speed / a_turn_m_s2
     if stage == "" and not SIDE_MIN_OFFSET_M < abs(frame.crosstrack_m) < radius:
         stage = "turn"  # far out; or on the path, where which side is away is noise (a copter at hover)
