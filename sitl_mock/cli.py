@@ -22,7 +22,8 @@ from sitl_mock.vehicle import VehicleParams
 # Keys of the vehicle: block a model must give (the others default as in a mission).
 _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
 _MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
-                   "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0}
+                   "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0,
+                   "pos_delay_s": 0.0}
 
 
 def load_vehicle_model(path: str) -> dict[str, float]:
@@ -155,7 +156,8 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
             airspeed_cruise_m_s=args.airspeed_m_s, airspeed_min_m_s=args.airspeed_min_m_s,
             airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,
             roll_max_rad=math.radians(args.roll_max_deg), wind_ned_m_s=wind, pos_noise_m=args.pos_noise_m,
-            vel_bias_m_s=vel_bias, vel_bias_tc_s=model["vel_bias_tc_s"], seed=args.seed)
+            vel_bias_m_s=vel_bias, vel_bias_tc_s=model["vel_bias_tc_s"], pos_delay_s=model["pos_delay_s"],
+            seed=args.seed)
     except ValueError as err:
         raise ValueError(f"vehicle parameters: {err}") from None
     # A real ArduCopter flies GUIDED velocity targets through its position controller; a model given

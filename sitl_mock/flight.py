@@ -588,7 +588,8 @@ class FlightLogic:
                 vel, acc_ff, yaw_rate = self._follow(sp)
                 if self.posctl is not None and sp.pos_ned_m[0] is None and sp.vel_ned_m_s[0] is not None:
                     # ArduCopter GUIDED velocity control: its trajectory starts where the vehicle is.
-                    pos_ne, vel_ne = (s.pos_ned_m[0], s.pos_ned_m[1]), (s.vel_ned_m_s[0], s.vel_ned_m_s[1])
+                    est = self.model.estimated_pos_ned_m()  # the controller flies on the estimate
+                    pos_ne, vel_ne = (est[0], est[1]), (s.vel_ned_m_s[0], s.vel_ned_m_s[1])
                     if not posctl_flying:
                         self.posctl.reset(pos_ne, vel_ne, (s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]))
                     acc_ne = self.posctl.update(dt_s, (vel[0], vel[1]), pos_ne, vel_ne)

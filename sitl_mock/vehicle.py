@@ -21,7 +21,10 @@ Copter
     slowly varying bias (a Gauss-Markov process on each horizontal axis), so while airborne the
     copter flies the reported velocity plus that bias, and its reported position (which the
     estimator ties to GPS) moves away from the integral of the reported velocity, as PX4's does
-    in SIH (docs/vehicle_model.md).
+    in SIH (docs/vehicle_model.md). The reported position may also lag the vehicle's
+    (``pos_delay_s``): ArduCopter SITL's estimator reports a position about 25 ms old beside a
+    velocity about 10 ms old, so its position leaves the integral of its velocity by the velocity
+    times the difference in the turns (docs/vehicle_model.md).
 Plane
     Constant airspeed (never below ``airspeed_min_m_s``), heading turning at ``g tan(roll) / V``
     (coordinated turn, lateral acceleration ``g tan(roll)``), the roll angle following the command
@@ -107,6 +110,8 @@ class VehicleParams:
         Copter: the velocity estimate's bias, a first-order Gauss-Markov process on each horizontal
         axis with this standard deviation (m/s, 0: none) and correlation time (s, > 0); airborne, the
         vehicle moves at the reported velocity plus the bias.
+    pos_delay_s : float
+        How old the reported (estimated) position is behind the reported velocity (s, 0: none).
     seed : int
         Seed of the noise generators (position noise, velocity bias).
     """
@@ -133,6 +138,7 @@ class VehicleParams:
     pos_noise_m: float = 0.0
     vel_bias_m_s: float = 0.0
     vel_bias_tc_s: float = 3.0
+    pos_delay_s: float = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -145,7 +151,7 @@ class VehicleParams:
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
-                     "speed_sag_s", "vel_bias_m_s"):
+                     "speed_sag_s", "vel_bias_m_s", "pos_delay_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -214,6 +220,7 @@ class VehicleModel:
         self._cmd_queue: deque = deque()
         self._tail_ne_m_s = (0.0, 0.0)  # the low-passed horizontal velocity error of the slow tail
         self._noise_ned_m = (0.0, 0.0, 0.0)
+        self._pos_history: deque = deque()  # (t, position) over the last pos_delay_s, oldest first
 
     def _delayed(self, vel_cmd_ned_m_s, yaw_rate_cmd_rad_s):
         """The command as the vehicle sees it ``delay_s`` after it was given (dead time)."""
@@ -304,6 +311,7 @@ class VehicleModel:
             s.roll_rad = math.atan2(a_right, GRAVITY_M_S2)
         s.airspeed_m_s = math.hypot(v_new[0], v_new[1])
         s.t_s += dt_s
+        self._record_position()
         self._draw_noise()
 
     def _horizontal_response(self, dt_s: float, vel_cmd_ned_m_s, acc_ff_ned_m_s2, k: float,
@@ -391,6 +399,7 @@ class VehicleModel:
         s.acc_ned_m_s2 = [(v_new[i] - v_old[i]) / dt_s for i in range(3)]
         s.pitch_rad = math.atan2(-s.vel_ned_m_s[2], max(s.airspeed_m_s, 1e-6)) if s.airspeed_m_s > 0 else 0.0
         s.t_s += dt_s
+        self._record_position()
         self._draw_noise()
 
     def _stay_on_ground(self, dt_s: float) -> None:
@@ -400,6 +409,7 @@ class VehicleModel:
         s.acc_ned_m_s2 = [0.0, 0.0, 0.0]
         s.yaw_rate_rad_s = 0.0
         s.t_s += dt_s
+        self._record_position()
         self._draw_noise()
 
     def _step_bias(self, dt_s: float) -> None:
@@ -440,8 +450,34 @@ class VehicleModel:
         s.vel_ned_m_s = [s.airspeed_m_s * math.cos(s.yaw_rad) + wn, s.airspeed_m_s * math.sin(s.yaw_rad) + we, vz_m_s]
 
     # ------------------------------------------------------------------ measurements
-    def measured_pos_ned_m(self) -> tuple[float, float, float]:
-        """Position as the autopilot reports it: the true position plus this step's seeded Gaussian noise."""
+    def _record_position(self) -> None:
+        """Keep the true positions of the last ``pos_delay_s`` (one per physics step)."""
+        delay = self.params.pos_delay_s
+        if delay <= 0.0:
+            return
+        s = self.state
+        history = self._pos_history
+        history.append((s.t_s, (s.pos_ned_m[0], s.pos_ned_m[1], s.pos_ned_m[2])))
+        while len(history) > 2 and history[1][0] <= s.t_s - delay:
+            history.popleft()
+
+    def estimated_pos_ned_m(self) -> tuple[float, float, float]:
+        """The autopilot's estimate of the position: the true position ``pos_delay_s`` ago
+        (interpolated between physics steps; the oldest kept while the history is shorter)."""
         pos = self.state.pos_ned_m
+        history = self._pos_history
+        if self.params.pos_delay_s <= 0.0 or not history:
+            return (pos[0], pos[1], pos[2])
+        due = self.state.t_s - self.params.pos_delay_s
+        (t0, p0) = history[0]
+        if len(history) == 1 or due <= t0:
+            return p0
+        t1, p1 = history[1]
+        w = min(1.0, (due - t0) / (t1 - t0)) if t1 > t0 else 1.0
+        return (p0[0] + (p1[0] - p0[0]) * w, p0[1] + (p1[1] - p0[1]) * w, p0[2] + (p1[2] - p0[2]) * w)
+
+    def measured_pos_ned_m(self) -> tuple[float, float, float]:
+        """Position as the autopilot reports it: its estimate plus this step's seeded Gaussian noise."""
+        pos = self.estimated_pos_ned_m()
         n = self._noise_ned_m
         return (pos[0] + n[0], pos[1] + n[1], pos[2] + n[2])

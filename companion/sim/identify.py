@@ -72,6 +72,9 @@ BIAS_BOOTSTRAP_RUNS = 40  # drifts drawn from the fitted bias for its standard e
 BIAS_BOOTSTRAP_SEED = 0
 NO_BIAS_TC_S = VehicleModel().vel_bias_tc_s  # the time constant written where there is no bias
 ACROSS_MIN_SPEED_M_S = 2.0  # the bias across the track is measured where the vehicle flies at least this fast
+POSITION_DELAY_LAG_S = 1.0  # the lag over which the drift's change is regressed on the velocity's
+MAX_POSITION_DELAY_S = 0.5  # a fitted position delay beyond this (either way) is not one
+DELAY_SCALE_S = 0.01  # a delay's standard error is judged against at least this (a delay of 0 is one too)
 BIAS_NEGLIGIBLE_M_S = 0.01  # a velocity bias below this: none to speak of (its time constant is not judged)
 # The bias's correlation time shows only in how the drift bends over seconds, and a few minutes
 # of flight hold a few dozen independent samples of that: it is accepted to this share.
@@ -169,7 +172,8 @@ def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_
 
 
 def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
-                  t_autopilot_s: np.ndarray | None = None) -> tuple[float, float, float, float, dict[float, float]]:
+                  t_autopilot_s: np.ndarray | None = None,
+                  pos_delay_s: float = 0.0) -> tuple[float, float, float, float, dict[float, float]]:
     """The velocity estimate's bias: ``(sigma_m_s, tc_s, se_sigma_m_s, se_tc_s, structure)``.
 
     On a uniform grid, ``e(t) = p(t) - integral of v`` (reported position minus the integral of
@@ -191,16 +195,18 @@ def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray,
     The velocity is integrated over ``t_autopilot_s`` when given (the autopilot's clock at each
     grid time): a simulator's clock can run slower than the log's, and integrating over the log's
     seconds would then add ``v`` times the difference in rates to the drift (0.07 m/s at 5 m/s
-    for PX4 SIH's steady 1.3 %; far more where its clock slips unevenly).
+    for PX4 SIH's steady 1.3 %; far more where its clock slips unevenly). With ``pos_delay_s``
+    (:func:`position_delay`) the drift is measured against the integral that much earlier, so
+    that a position reported late is not counted as a bias.
     """
-    e, ok, dt = _drift_ne(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s)
+    e, ok, dt = _drift_ne(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s, pos_delay_s)
     return _fit_bias_with_errors([(e, ok)], dt)
 
 
 def across_track_velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
                                t_autopilot_s: np.ndarray | None = None,
-                               min_speed_m_s: float = ACROSS_MIN_SPEED_M_S) -> tuple[float, float, float, float,
-                                                                                   dict[float, float]]:
+                               min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
+                               pos_delay_s: float = 0.0) -> tuple[float, float, float, float, dict[float, float]]:
     """The velocity bias across the track only: as :func:`velocity_bias`, on the component of the
     drift ``e`` perpendicular to the reported velocity, over the samples flown at
     ``min_speed_m_s`` or more.
@@ -211,12 +217,12 @@ def across_track_velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s
     step's velocity and summed: for a bias of ``sigma`` across the track, its structure is that of
     :func:`velocity_bias` with that ``sigma``.
     """
-    across, ok, dt = _across_drift(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s, min_speed_m_s)
+    across, ok, dt = _across_drift(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s, min_speed_m_s, pos_delay_s)
     return _fit_bias_with_errors([(across, ok)], dt)
 
 
 def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
-                             ) -> tuple[float, float, float, float, dict[float, float]]:
+                             pos_delay_s: float = 0.0) -> tuple[float, float, float, float, dict[float, float]]:
     """One bias process fitted to several flights at once: as :func:`across_track_velocity_bias`,
     with every flight's pairs of samples pooled at each lag (no pair spans two flights).
 
@@ -238,16 +244,18 @@ def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACRO
     for f in flights:
         if f.pos_ne_m is None:
             raise ValueError("pooled bias: a flight has no positions")
-        across, ok, dt = _across_drift(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s)
+        across, ok, dt = _across_drift(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s,
+                                       pos_delay_s)
         segments.append((across, ok))
     return _fit_bias_with_errors(segments, dt)
 
 
 def _across_drift(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
-                  t_autopilot_s: np.ndarray | None, min_speed_m_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+                  t_autopilot_s: np.ndarray | None, min_speed_m_s: float,
+                  pos_delay_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, float]:
     """``(across, valid, dt)``: the drift's component across the track, summed step by step, as a
     one-column array, valid where the vehicle flies at ``min_speed_m_s`` or more."""
-    e, ok, dt = _drift_ne(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s)
+    e, ok, dt = _drift_ne(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s, pos_delay_s)
     left, speed = _unit_lateral(np.asarray(vel_ne_m_s, float))
     ok = ok & (speed >= min_speed_m_s)
     de = np.zeros_like(e)
@@ -256,8 +264,9 @@ def _across_drift(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray,
 
 
 def _drift_ne(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
-              t_autopilot_s: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(e, valid, dt)``: the reported position minus the integral of the reported velocity."""
+              t_autopilot_s: np.ndarray | None, pos_delay_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(e, valid, dt)``: the reported position minus the integral of the reported velocity up
+    to ``pos_delay_s`` earlier (the position's own delay, :func:`position_delay`)."""
     t = np.asarray(t_s, float)
     dt = float(t[1] - t[0])
     ok = np.asarray(valid, bool)
@@ -265,7 +274,55 @@ def _drift_ne(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, val
     step = np.zeros_like(v)
     step_s = dt if t_autopilot_s is None else np.diff(np.asarray(t_autopilot_s, float))[:, None]
     step[1:] = 0.5 * (v[1:] + v[:-1]) * step_s
-    return np.asarray(pos_ne_m, float) - np.cumsum(step, axis=0), ok, dt
+    integral = np.cumsum(step, axis=0)
+    if pos_delay_s != 0.0:
+        integral = np.column_stack([np.interp(t - pos_delay_s, t, integral[:, i]) for i in range(2)])
+    return np.asarray(pos_ne_m, float) - integral, ok, dt
+
+
+def position_delay(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
+                   t_autopilot_s: np.ndarray | None = None,
+                   lag_s: float = POSITION_DELAY_LAG_S) -> tuple[float, float]:
+    """How much older the reported position is than the reported velocity: ``(delay_s, se_s)``.
+
+    A position reported ``delta`` late is ``P(t - delta)``, ``P`` the integral of the velocity, so
+    the drift ``e = p - P`` holds ``-delta v(t)`` besides the velocity bias's own drift ``b``. Over
+    a lag ``T`` its change is ``De = Db - delta Dv``: the least-squares ``delta`` of ``De`` on
+    ``-Dv`` over every pair of valid samples ``T`` apart (both axes pooled). A bias that does not
+    follow the velocity's changes leaves it unbiased; the standard error counts one independent
+    pair per ``T`` and axis (it understates the scatter between flights about twofold: a bias
+    that by chance follows one flight's velocity changes moves the fit). ArduCopter SITL's comes
+    out 13-24 ms (docs/vehicle_model.md), PX4 SIH's about 0. ``(0, inf)`` when the velocity hardly changes over the log.
+
+    Examples
+    --------
+    A position reported 0.05 s late on a circle flown at 5 m/s:
+
+    >>> t = np.arange(0.0, 60.0, 0.02)
+    >>> w = 5.0 / 20.0
+    >>> vel = np.column_stack([-5.0 * np.sin(w * t), 5.0 * np.cos(w * t)])
+    >>> pos = np.column_stack([20.0 * np.cos(w * (t - 0.05)), 20.0 * np.sin(w * (t - 0.05))])
+    >>> delay, se = position_delay(t, pos, vel, np.ones(t.size, bool))
+    >>> round(delay, 4)
+    0.05
+    """
+    e, ok, dt = _drift_ne(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s)
+    v = np.asarray(vel_ne_m_s, float)
+    k = max(1, int(round(lag_s / dt)))
+    if ok.size <= k:
+        return 0.0, math.inf
+    breaks = np.cumsum(~ok)
+    use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
+    x = -(v[k:] - v[:-k])[use].ravel()
+    y = (e[k:] - e[:-k])[use].ravel()
+    sxx = float(x @ x)
+    if x.size < 10 or sxx <= 1e-9 * x.size:
+        return 0.0, math.inf
+    delay = float(x @ y) / sxx
+    residual = y - delay * x
+    independent = max(1.0, 2.0 * float(use.sum()) / k)  # pairs T apart, two axes
+    se = math.sqrt(float(residual @ residual) / max(1, x.size - 1) / sxx * x.size / independent)
+    return delay, se
 
 
 def _fit_bias_with_errors(segments: list[tuple[np.ndarray, np.ndarray]], dt: float,
@@ -605,34 +662,47 @@ def identify(s: Samples) -> IdentifyResult:
 
     unidentified = _unidentified(excitation, theta, se, yaw_limit, yaw_flown, len(s.t_yaw_s))
     yaw_value = yaw_limit if yaw_limit is not None else max(yaw_flown, math.radians(1.0))
-    bias, bias_tc, bias_se, bias_tc_se = _identify_bias(s, quality, unidentified)
+    bias, bias_tc, bias_se, bias_tc_se, pos_delay, pos_delay_se = _identify_bias(s, quality, unidentified)
     model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
                          speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
                          tail_share=float(theta[5]), tail_tc_s=float(theta[6]),
-                         yaw_rate_max_deg_s=math.degrees(yaw_value), vel_bias_m_s=bias, vel_bias_tc_s=bias_tc)
+                         yaw_rate_max_deg_s=math.degrees(yaw_value), vel_bias_m_s=bias, vel_bias_tc_s=bias_tc,
+                         pos_delay_s=pos_delay)
     std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
-    std.update({"vel_bias_m_s": bias_se, "vel_bias_tc_s": bias_tc_se})
+    std.update({"vel_bias_m_s": bias_se, "vel_bias_tc_s": bias_tc_se, "pos_delay_s": pos_delay_se})
     return IdentifyResult(model=model, std_errors=std, quality=quality, excitation=excitation,
                           unidentified=unidentified)
 
 
-def _identify_bias(s: Samples, quality: dict[str, float | str], unidentified: dict[str, str]) -> tuple[float, float, float, float]:
-    """The velocity bias of :func:`identify` (value, time constant, their standard errors); adds
-    the measured drift to ``quality`` and what the log cannot pin down to ``unidentified``."""
+def _identify_bias(s: Samples, quality: dict[str, float | str],
+                   unidentified: dict[str, str]) -> tuple[float, float, float, float, float, float]:
+    """The velocity bias of :func:`identify` (value, time constant, their standard errors) and the
+    position's delay (:func:`position_delay`, and its standard error); adds the measured drift to
+    ``quality`` and what the log cannot pin down to ``unidentified``. The bias is measured on the
+    drift that the delay does not explain."""
     if s.pos_ne_m is None:
-        unidentified["vel_bias_m_s"] = unidentified["vel_bias_tc_s"] = "no positions in the log"
-        return 0.0, NO_BIAS_TC_S, math.inf, math.inf
-    bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s)
+        why = "no positions in the log"
+        unidentified["vel_bias_m_s"] = unidentified["vel_bias_tc_s"] = unidentified["pos_delay_s"] = why
+        return 0.0, NO_BIAS_TC_S, math.inf, math.inf, 0.0, math.inf
+    delay, delay_se = position_delay(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s)
+    quality["pos_delay_fitted_s"] = delay
+    if not (abs(delay) <= MAX_POSITION_DELAY_S and delay_se <= MAX_RELATIVE_SE * max(abs(delay), DELAY_SCALE_S)):
+        unidentified["pos_delay_s"] = (f"{delay:.3g} +- {delay_se:.2g} s: the velocity changes too little in "
+                                       "the log to tell the position's delay from its drift")
+    delay = max(0.0, delay)  # a position ahead of the velocity is not modelled
+    if "pos_delay_s" in unidentified:
+        delay = 0.0
+    bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay)
     quality.update({f"position_drift_{lag:g}s_m": d for lag, d in drift.items()})
     across, across_tc, across_se, across_tc_se, measured = across_track_velocity_bias(
-        s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s)
+        s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, pos_delay_s=delay)
     if measured:  # a diagnostic: the mock flies the missions' across-track figure (docs/vehicle_model.md)
         quality.update({"vel_bias_across_m_s": across, "vel_bias_across_se_m_s": across_se,
                         "vel_bias_across_tc_s": across_tc, "vel_bias_across_tc_se_s": across_tc_se})
     unidentified.update(_bias_unidentified(bias, tc, se, tc_se, bool(drift)))
     if bias < BIAS_NEGLIGIBLE_M_S:
         tc = NO_BIAS_TC_S  # no bias to speak of: its time constant means nothing
-    return bias, tc, se, tc_se
+    return bias, tc, se, tc_se, delay, delay_se
 
 
 def _bias_unidentified(bias: float, tc: float, se: float, tc_se: float, measured: bool) -> dict[str, str]:

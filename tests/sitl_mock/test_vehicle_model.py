@@ -254,3 +254,17 @@ def test_velocity_estimate_bias_does_not_move_a_copter_on_the_ground():
     for _ in range(500):
         model.step_multirotor(0.02, (0.0, 0.0, 0.0), 0.0)  # motors on, nothing asked: still on the ground
     assert model.state.pos_ned_m == [0.0, 0.0, 0.0]
+
+
+def test_the_reported_position_is_pos_delay_s_old_and_the_velocity_current():
+    # Flying north at a steady 4 m/s, a position reported 0.016 s late is 4 * 0.016 = 0.064 m
+    # behind the true one; the velocity reported is the one flown now. Without the delay the
+    # report is the true position.
+    for delay in (0.0, 0.016):
+        model = copter(pos_delay_s=delay, tau_vel_s=0.05)
+        for _ in range(2000):  # 5 s at 400 Hz: the lag has settled
+            model.step_multirotor(0.0025, (4.0, 0.0, 0.0), 0.0)
+        true_n = model.state.pos_ned_m[0]
+        assert model.state.vel_ned_m_s[0] == pytest.approx(4.0, abs=1e-9)
+        assert model.measured_pos_ned_m()[0] == pytest.approx(true_n - 4.0 * delay, abs=1e-9)
+        assert model.measured_pos_ned_m()[1:] == pytest.approx(tuple(model.state.pos_ned_m[1:]), abs=1e-12)

@@ -23,6 +23,7 @@ def test_a_copter_flies_the_model_identified_from_its_autopilot_by_default(autop
         model["lag_s"], model["a_max_m_s2"], model["delay_s"], model["speed_sag_s"])
     assert vp.yaw_rate_max_rad_s == pytest.approx(math.radians(model["yaw_rate_max_deg_s"]))
     assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (model["vel_bias_m_s"], model["vel_bias_tc_s"])
+    assert vp.pos_delay_s == model["pos_delay_s"]
 
 
 def test_the_ardupilot_copter_emulates_arducopters_position_controller_unless_a_model_is_given(tmp_path):
