@@ -694,6 +694,10 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
         delay = 0.0
     bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay)
     quality.update({f"position_drift_{lag:g}s_m": d for lag, d in drift.items()})
+    if drift.get(1.0, math.inf) < BIAS_NEGLIGIBLE_M_S * 1.0:
+        # Under a centimetre over a second: no bias to speak of. What drift there is, the rounding
+        # of the reported numbers, fits as white noise (a huge sigma over a vanishing tau).
+        bias, tc, se, tc_se = 0.0, NO_BIAS_TC_S, 0.0, 0.0
     across, across_tc, across_se, across_tc_se, measured = across_track_velocity_bias(
         s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, pos_delay_s=delay)
     if measured:  # a diagnostic: the mock flies the missions' across-track figure (docs/vehicle_model.md)

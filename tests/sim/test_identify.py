@@ -457,6 +457,17 @@ def test_ardupilot_mock_reports_its_position_as_late_and_drifts_as_the_shared_re
     assert gauss_markov_drift(5.0, 0.030, 1.63) > 1.25 * drift[5.0]
 
 
+def test_a_flight_whose_position_is_the_integral_of_its_velocity_has_no_bias():
+    # The shared mock flight predates the mock's bias: its position drifts from the integral of its
+    # velocity by the rounding of the numbers sent (0.2 mm over 1 s). That is no bias; fitted as
+    # one it came out as white noise, tens of m/s over a vanishing correlation time.
+    s = read_identification_samples(shared(REAL / "mock-ardupilot-figure-eight-corrector.tlog"))
+    result = identify(s)
+    assert result.quality["position_drift_1s_m"] < 0.001
+    assert result.model.vel_bias_m_s == 0.0 and result.model.vel_bias_tc_s == VehicleModel().vel_bias_tc_s
+    assert "vel_bias_m_s" not in result.unidentified
+
+
 def test_a_gentle_flight_is_refused_naming_the_parameter_it_cannot_identify(capsys):
     code = main(["identify", str(shared(SINE))])
     err = capsys.readouterr().err.strip().splitlines()
