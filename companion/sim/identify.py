@@ -686,12 +686,13 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
         return 0.0, NO_BIAS_TC_S, math.inf, math.inf, 0.0, math.inf
     delay, delay_se = position_delay(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s)
     quality["pos_delay_fitted_s"] = delay
-    if not (abs(delay) <= MAX_POSITION_DELAY_S and delay_se <= MAX_RELATIVE_SE * max(abs(delay), DELAY_SCALE_S)):
+    if math.isfinite(delay_se) and abs(delay) <= 2.0 * delay_se:
+        delay = 0.0  # none to tell from zero (PX4 SIH's: -9 +- 13 ms): no delay, identified as such
+    elif not (abs(delay) <= MAX_POSITION_DELAY_S and delay_se <= MAX_RELATIVE_SE * max(abs(delay), DELAY_SCALE_S)):
         unidentified["pos_delay_s"] = (f"{delay:.3g} +- {delay_se:.2g} s: the velocity changes too little in "
                                        "the log to tell the position's delay from its drift")
-    delay = max(0.0, delay)  # a position ahead of the velocity is not modelled
-    if "pos_delay_s" in unidentified:
         delay = 0.0
+    delay = max(0.0, delay)  # a position ahead of the velocity is not modelled
     bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay)
     quality.update({f"position_drift_{lag:g}s_m": d for lag, d in drift.items()})
     if drift.get(1.0, math.inf) < BIAS_NEGLIGIBLE_M_S * 1.0:

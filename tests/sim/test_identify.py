@@ -404,6 +404,9 @@ def test_px4_identification_flight_needs_the_slow_tail_and_names_the_yaw_limit_i
     assert 0.5 <= report["vehicle"]["tail_share"] <= 0.95
     # never saturated in yaw: the flight commanded at most 5/3 rad/s and PX4 flew it
     assert "yaw_rate_max_deg_s" in report["unidentified"]
+    # its position is reported with its velocity: a delay within two standard errors of none is none
+    assert report["vehicle"]["pos_delay_s"] == 0.0 and "pos_delay_s" not in report["unidentified"]
+    assert abs(report["quality"]["pos_delay_fitted_s"]) <= 2.0 * report["std_errors"]["pos_delay_s"]
     assert report["vehicle"]["yaw_rate_max_deg_s"] >= 85.0
     assert 3.0 <= report["vehicle"]["a_max_m_s2"] <= 5.0
     # the response is this flight's; the bias is not (next test)
