@@ -158,7 +158,7 @@ class VehicleModel:
         of the reported velocity. The mock flies it; the guidance and the offline simulator do not
         use it (it is a disturbance, not a response to the command).
     pos_delay_s : how much older the reported position is than the reported velocity, >= 0
-        (ArduCopter SITL's estimator: about 15 ms). Its position then leaves the integral of its
+        (ArduCopter SITL's estimator: about 19 ms). Its position then leaves the integral of its
         velocity by about ``-pos_delay_s * v``. The mock reports it so; the guidance does not use it.
     """
 
