@@ -23,7 +23,7 @@ from sitl_mock.vehicle import VehicleParams
 _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
 _MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
                    "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0,
-                   "pos_delay_s": 0.0}
+                   "vel_offset_m_s": 0.0, "pos_delay_s": 0.0}
 
 
 def load_vehicle_model(path: str) -> dict[str, float]:
@@ -118,6 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
     add("--vel-bias-m-s", type=float, default=None,
         help="standard deviation of the velocity estimate's bias the copter drifts by, m/s per horizontal axis "
              "(default: the vehicle model's; 0: none)")
+    add("--vel-offset-m-s", type=float, default=None,
+        help="standard deviation of the velocity estimate's constant offset, drawn once per flight (seeded), "
+             "m/s per horizontal axis (default: the vehicle model's; 0: none)")
     add("--pos-noise-m", type=float, default=0.0,
         help="standard deviation of the noise on each reported position axis, m (default 0)")
     add("--offboard-loss-s", type=float, default=0.5, help="PX4 COM_OF_LOSS_T")
@@ -147,6 +150,7 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
     yaw_max = args.yaw_rate_max_deg_s if args.yaw_rate_max_deg_s is not None else model["yaw_rate_max_deg_s"]
     tau_vel = args.tau_vel_s if args.tau_vel_s is not None else model["lag_s"]
     vel_bias = args.vel_bias_m_s if args.vel_bias_m_s is not None else model["vel_bias_m_s"]
+    vel_offset = args.vel_offset_m_s if args.vel_offset_m_s is not None else model["vel_offset_m_s"]
     try:
         vehicle = VehicleParams(
             kind=args.vehicle, tau_vel_s=tau_vel, tau_yaw_rate_s=args.tau_yaw_rate_s, a_max_m_s2=a_max,
@@ -156,7 +160,8 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
             airspeed_cruise_m_s=args.airspeed_m_s, airspeed_min_m_s=args.airspeed_min_m_s,
             airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,
             roll_max_rad=math.radians(args.roll_max_deg), wind_ned_m_s=wind, pos_noise_m=args.pos_noise_m,
-            vel_bias_m_s=vel_bias, vel_bias_tc_s=model["vel_bias_tc_s"], pos_delay_s=model["pos_delay_s"],
+            vel_bias_m_s=vel_bias, vel_bias_tc_s=model["vel_bias_tc_s"],
+            vel_offset_m_s=vel_offset, pos_delay_s=model["pos_delay_s"],
             seed=args.seed)
     except ValueError as err:
         raise ValueError(f"vehicle parameters: {err}") from None

@@ -101,14 +101,15 @@ ARDUPILOT_STREAM_GROUPS = {
 # and beside it 0.018 m/s over 2.07 s. The mock flies the bias on both axes. The gallery's
 # flights, which the mock is judged on, were not used to set them (docs/vehicle_model.md).
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
-                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "pos_delay_s")
+                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "vel_offset_m_s", "pos_delay_s")
 IDENTIFIED_COPTER_MODELS = {
     "ardupilot": {"a_max_m_s2": 2.43, "delay_s": 0.173, "lag_s": 0.457, "accel_lag_s": 0.0, "tail_share": 0.0,
                   "tail_tc_s": 1.0, "speed_sag_s": 0.049, "yaw_rate_max_deg_s": 60.6,
-                  "vel_bias_m_s": 0.018, "vel_bias_tc_s": 2.07, "pos_delay_s": 0.019},
+                  "vel_bias_m_s": 0.0158, "vel_bias_tc_s": 1.63, "vel_offset_m_s": 0.0083,
+                  "pos_delay_s": 0.019},
     "px4": {"a_max_m_s2": 3.86, "delay_s": 0.119, "lag_s": 0.437, "accel_lag_s": 0.0, "tail_share": 0.857,
             "tail_tc_s": 0.958, "speed_sag_s": 0.093, "yaw_rate_max_deg_s": 92.3,
-            "vel_bias_m_s": 0.259, "vel_bias_tc_s": 4.54, "pos_delay_s": 0.0},
+            "vel_bias_m_s": 0.259, "vel_bias_tc_s": 4.54, "vel_offset_m_s": 0.0, "pos_delay_s": 0.0},
 }
 
 

@@ -18,7 +18,8 @@ Copter
     controller holds ground velocity, so a steady wind has no lasting effect on the track and is
     not modelled for copters. What is modelled is the autopilot's **velocity-estimate bias**
     (``vel_bias_m_s``, ``vel_bias_tc_s``): the velocity loop holds its estimate, which is off by a
-    slowly varying bias (a Gauss-Markov process on each horizontal axis), so while airborne the
+    slowly varying bias (a Gauss-Markov process on each horizontal axis) and by a constant offset
+    drawn once (``vel_offset_m_s``), so while airborne the
     copter flies the reported velocity plus that bias, and its reported position (which the
     estimator ties to GPS) moves away from the integral of the reported velocity, as PX4's does
     in SIH (docs/vehicle_model.md). The reported position may also lag the vehicle's
@@ -110,10 +111,13 @@ class VehicleParams:
         Copter: the velocity estimate's bias, a first-order Gauss-Markov process on each horizontal
         axis with this standard deviation (m/s, 0: none) and correlation time (s, > 0); airborne, the
         vehicle moves at the reported velocity plus the bias.
+    vel_offset_m_s : float
+        Copter: beside the bias, the velocity estimate misses a constant offset, drawn once (seeded)
+        on each horizontal axis with this standard deviation (m/s, 0: none) and flown as the bias is.
     pos_delay_s : float
         How old the reported (estimated) position is behind the reported velocity (s, 0: none).
     seed : int
-        Seed of the noise generators (position noise, velocity bias).
+        Seed of the noise generators (position noise, velocity bias and offset).
     """
 
     kind: str = "copter"
@@ -138,6 +142,7 @@ class VehicleParams:
     pos_noise_m: float = 0.0
     vel_bias_m_s: float = 0.0
     vel_bias_tc_s: float = 3.0
+    vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
     seed: int = 0
 
@@ -151,7 +156,7 @@ class VehicleParams:
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
-                     "speed_sag_s", "vel_bias_m_s", "pos_delay_s"):
+                     "speed_sag_s", "vel_bias_m_s", "vel_offset_m_s", "pos_delay_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -217,6 +222,8 @@ class VehicleModel:
         self._rng = random.Random(params.seed)
         self._bias_rng = random.Random(f"vel-bias:{params.seed}")  # its own stream: the noise's stays as it was
         self._bias_ne_m_s = (0.0, 0.0)  # the velocity estimate's bias (what the vehicle flies beyond it)
+        offset_rng = random.Random(f"vel-offset:{params.seed}")  # its own stream: the bias's stays as it was
+        self._offset_ne_m_s = (offset_rng.gauss(0.0, params.vel_offset_m_s), offset_rng.gauss(0.0, params.vel_offset_m_s))
         self._cmd_queue: deque = deque()
         self._tail_ne_m_s = (0.0, 0.0)  # the low-passed horizontal velocity error of the slow tail
         self._noise_ned_m = (0.0, 0.0, 0.0)
@@ -284,7 +291,7 @@ class VehicleModel:
         s.acc_ned_m_s2 = [dvx / dt_s, dvy / dt_s, dvz / dt_s]
         v_new = [v[0] + dvx, v[1] + dvy, 0.0 if p.kind == "rover" else v[2] + dvz]
         self._move(v, v_new, dt_s)
-        if p.vel_bias_m_s > 0.0 and p.kind == "copter":
+        if (p.vel_bias_m_s > 0.0 or p.vel_offset_m_s > 0.0) and p.kind == "copter":
             self._step_bias(dt_s)
         s.vel_ned_m_s = v_new
         if p.kind == "rover":
@@ -414,7 +421,7 @@ class VehicleModel:
 
     def _step_bias(self, dt_s: float) -> None:
         """Advance the velocity estimate's bias (exact discretisation of a first-order Gauss-Markov
-        process) and, airborne, move the vehicle by it: the loop holds the biased estimate."""
+        process) and, airborne, move the vehicle by it and by the offset: the loop holds the estimate."""
         p = self.params
         phi = math.exp(-dt_s / p.vel_bias_tc_s)
         kick = p.vel_bias_m_s * math.sqrt(1.0 - phi * phi)
@@ -423,8 +430,8 @@ class VehicleModel:
         bn, be = phi * bn + kick * g(0.0, 1.0), phi * be + kick * g(0.0, 1.0)
         self._bias_ne_m_s = (bn, be)
         if not self.state.on_ground:
-            self.state.pos_ned_m[0] += bn * dt_s
-            self.state.pos_ned_m[1] += be * dt_s
+            self.state.pos_ned_m[0] += (bn + self._offset_ne_m_s[0]) * dt_s
+            self.state.pos_ned_m[1] += (be + self._offset_ne_m_s[1]) * dt_s
 
     def _move(self, v_old: list[float], v_new: list[float], dt_s: float) -> None:
         """Trapezoidal position update: exact for constant acceleration over the step."""

@@ -19,7 +19,7 @@ from companion.guidance.types import VEHICLE_MODEL_KEYS
 
 _DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "tail_share": 3, "tail_tc_s": 3,
              "speed_sag_s": 3, "yaw_rate_max_deg_s": 1, "vel_bias_m_s": 3, "vel_bias_tc_s": 2,
-             "pos_delay_s": 3}
+             "vel_offset_m_s": 3, "pos_delay_s": 3}
 
 
 class IdentificationRefused(CompanionError):

@@ -123,7 +123,7 @@ class GuidanceParams:
 MAX_TAIL_SHARE = 0.95
 #: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
-                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "pos_delay_s")
+                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "vel_offset_m_s", "pos_delay_s")
 
 
 @dataclass(frozen=True)
@@ -157,6 +157,11 @@ class VehicleModel:
         estimate, so the vehicle drifts by the bias, and the reported position leaves the integral
         of the reported velocity. The mock flies it; the guidance and the offline simulator do not
         use it (it is a disturbance, not a response to the command).
+    vel_offset_m_s : beside that bias, the estimate misses a velocity that stays put for a whole
+        flight: an offset on each horizontal axis drawn once, with this standard deviation (>= 0;
+        0: none; ArduCopter SITL's: about 1 cm/s). On a straight leg an autopilot's position loop
+        takes it up; it moves a track only where the track turns. The mock flies it; the guidance
+        does not use it.
     pos_delay_s : how much older the reported position is than the reported velocity, >= 0
         (ArduCopter SITL's estimator: about 19 ms). Its position then leaves the integral of its
         velocity by about ``-pos_delay_s * v``. The mock reports it so; the guidance does not use it.
@@ -172,6 +177,7 @@ class VehicleModel:
     yaw_rate_max_deg_s: float = 90.0
     vel_bias_m_s: float = 0.0
     vel_bias_tc_s: float = 3.0
+    vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
 
     def __post_init__(self) -> None:

@@ -386,6 +386,10 @@ MISSION = Object(
                                           "(the mock flies it; the guidance does not use it)", default=0.0),
                     "vel_bias_tc_s": Field(Number(exclusive_minimum=0, maximum=600), "correlation time "
                                            "of that bias", default=3.0),
+                    "vel_offset_m_s": Field(Number(minimum=0, maximum=10), "standard deviation of the "
+                                            "velocity estimate's offset, drawn once per flight on each "
+                                            "horizontal axis (the mock flies it; the guidance does not "
+                                            "use it)", default=0.0),
                     "pos_delay_s": Field(Number(minimum=0, maximum=1), "how much older the reported "
                                          "position is than the reported velocity (the mock reports it "
                                          "so; the guidance does not use it)", default=0.0),

@@ -76,6 +76,7 @@ POSITION_DELAY_LAG_S = 1.0  # the lag over which the drift's change is regressed
 MAX_POSITION_DELAY_S = 0.5  # a fitted position delay beyond this (either way) is not one
 DELAY_SCALE_S = 0.01  # a delay's standard error is judged against at least this (a delay of 0 is one too)
 BIAS_NEGLIGIBLE_M_S = 0.01  # a velocity bias below this: none to speak of (its time constant is not judged)
+OFFSET_NEGLIGIBLE_M_S = 0.001  # a constant velocity offset below this: none (a millimetre a second)
 # The bias's correlation time shows only in how the drift bends over seconds, and a few minutes
 # of flight hold a few dozen independent samples of that: it is accepted to this share.
 MAX_RELATIVE_SE_BIAS_TC = 0.5
@@ -222,7 +223,8 @@ def across_track_velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s
 
 
 def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
-                             pos_delay_s: float = 0.0) -> tuple[float, float, float, float, dict[float, float]]:
+                             pos_delay_s: float = 0.0,
+                             past_offset: bool = False) -> tuple[float, float, float, float, dict[float, float]]:
     """One bias process fitted to several flights at once: as :func:`across_track_velocity_bias`,
     with every flight's pairs of samples pooled at each lag (no pair spans two flights).
 
@@ -232,22 +234,116 @@ def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACRO
     alike). The median of their ``sigma`` and the median of their ``tau``, taken apart, come from
     different flights and can describe a process none of them flew: one flight of a slow bias
     among six is dropped by both medians, though it drifts furthest. Pooled, it counts for its
-    share of the seconds. ValueError when there are no flights, when they are not on one time step
-    or when one has no positions.
+    share of the seconds. With ``past_offset`` each flight's drift is taken without its constant
+    offset and turn (:func:`velocity_offset`'s ``rest``): the bias that wanders beside the offset.
+    ValueError when there are no flights, when they are not on one time step or when one has no
+    positions.
     """
-    if not flights:
-        raise ValueError("pooled bias: expected at least one flight, got none")
-    steps = {float(f.t_s[1] - f.t_s[0]) for f in flights if f.t_s.size > 1}
-    if len(steps) != 1:
-        raise ValueError(f"pooled bias: expected flights on one time step, got steps {sorted(steps)}")
     segments = []
-    for f in flights:
-        if f.pos_ne_m is None:
-            raise ValueError("pooled bias: a flight has no positions")
-        across, ok, dt = _across_drift(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s,
-                                       pos_delay_s)
+    for f in _with_positions(flights, "pooled bias"):
+        if past_offset:
+            _, _, across, ok, dt = velocity_offset(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s,
+                                                   min_speed_m_s, pos_delay_s)
+        else:
+            across, ok, dt = _across_drift(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s,
+                                           min_speed_m_s, pos_delay_s)
         segments.append((across, ok))
     return _fit_bias_with_errors(segments, dt)
+
+
+def pooled_velocity_offset(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
+                           pos_delay_s: float = 0.0) -> tuple[float, float]:
+    """The standard deviation of the constant offset that flights draw, per axis: ``(sigma, se)``.
+
+    Each flight's offset (:func:`velocity_offset`) is one draw on each axis, measured with an error
+    ``s``: its square is ``sigma^2 + s^2`` on average, so ``sigma^2`` is the mean of ``c^2 - s^2``
+    over the flights' components (0 if that is negative). ``se`` is the spread of that mean by
+    the delta method. A flight whose track keeps one direction adds its large error to both
+    sides and counts for little. ValueError when there are no flights or one has no positions.
+    """
+    terms = []
+    for f in _with_positions(flights, "pooled offset"):
+        c, s, *_ = velocity_offset(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s,
+                                   pos_delay_s)
+        terms.extend((c * c - s * s)[np.isfinite(s)])
+    if not terms:
+        return 0.0, math.inf
+    values = np.array(terms)
+    sigma = math.sqrt(max(0.0, float(np.mean(values))))
+    spread = float(np.std(values, ddof=1)) / math.sqrt(values.size) if values.size > 1 else math.inf
+    return sigma, (spread / (2.0 * sigma) if sigma > 0.0 else math.inf)
+
+
+def _with_positions(flights: list[Samples], what: str) -> list[Samples]:
+    """The flights, checked to be some, on one time step, each with positions (ValueError)."""
+    if not flights:
+        raise ValueError(f"{what}: expected at least one flight, got none")
+    steps = {float(f.t_s[1] - f.t_s[0]) for f in flights if f.t_s.size > 1}
+    if len(steps) != 1:
+        raise ValueError(f"{what}: expected flights on one time step, got steps {sorted(steps)}")
+    if any(f.pos_ne_m is None for f in flights):
+        raise ValueError(f"{what}: a flight has no positions")
+    return flights
+
+
+def velocity_offset(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
+                    t_autopilot_s: np.ndarray | None = None, min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
+                    pos_delay_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """The velocity estimate's constant offset: ``(offset_ne_m_s, se_ne_m_s, rest, valid, dt)``.
+
+    ArduCopter SITL's estimate misses a velocity that stays put in the north-east frame for a
+    whole flight (about 1 cm/s; docs/vehicle_model.md). On a straight leg it moves the track by a
+    steady rate, which the autopilot's position loop takes up; only where the track turns does its
+    share across the track change. So it is told apart from the bias that wanders
+    (:func:`velocity_bias`) by the track's turns: the drift across the track
+    (:func:`across_track_velocity_bias`) moves by ``c . left`` per second for an offset ``c``
+    (``left`` the unit normal of the velocity), and by ``rho |v|`` for a velocity turned by a small
+    angle ``rho`` (a drift across the track that never changes: no track moves by it, but it must
+    not be taken for ``c``). ``c`` and ``rho`` are the least squares of the drift's changes over
+    :data:`POSITION_DELAY_LAG_S` on those of ``integral(left)`` and ``integral(|v|)``; the
+    standard errors count one independent pair per lag, as :func:`position_delay` does. A log
+    whose track keeps one direction cannot tell ``c`` from ``rho``: its errors come out large
+    (infinite if it never turns).
+
+    ``rest`` is the drift across the track without the fitted offset and turn (one column, on
+    :func:`across_track_velocity_bias`'s samples ``valid``): what the wandering bias must explain.
+    ``(0, inf)`` errors when fewer than ten pairs can be used.
+
+    Examples
+    --------
+    A circle flown at 5 m/s with the velocity estimate missing 0.02 m/s north:
+
+    >>> t = np.arange(0.0, 60.0, 0.02)
+    >>> w = 5.0 / 20.0
+    >>> vel = np.column_stack([-5.0 * np.sin(w * t), 5.0 * np.cos(w * t)])
+    >>> pos = np.column_stack([20.0 * np.cos(w * t) + 0.02 * t, 20.0 * np.sin(w * t)])
+    >>> offset, se, rest, ok, dt = velocity_offset(t, pos, vel, np.ones(t.size, bool))
+    >>> [round(float(x), 4) + 0.0 for x in offset]
+    [0.02, 0.0]
+    """
+    across, ok, dt = _across_drift(t_s, pos_ne_m, vel_ne_m_s, valid, t_autopilot_s, min_speed_m_s, pos_delay_s)
+    left, speed = _unit_lateral(np.asarray(vel_ne_m_s, float))
+    w = np.where(ok, dt, 0.0)[:, None]
+    x = np.cumsum(np.column_stack([left, speed]) * w, axis=0)  # integral(left_n), integral(left_e), integral(|v|)
+    k = max(1, int(round(POSITION_DELAY_LAG_S / dt)))
+    none = (np.zeros(2), np.full(2, math.inf), across, ok, dt)
+    if ok.size <= k:
+        return none
+    breaks = np.cumsum(~ok)
+    use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
+    dx, dy = (x[k:] - x[:-k])[use], (across[k:, 0] - across[:-k, 0])[use]
+    if dy.size < 10:
+        return none
+    coef, *_ = np.linalg.lstsq(dx, dy, rcond=None)
+    residual = dy - dx @ coef
+    independent = max(1.0, float(use.sum()) / k)
+    scale = float(residual @ residual) / max(1, dy.size - 3) * dy.size / independent
+    gram = dx.T @ dx
+    rest = across - (x @ coef)[:, None]
+    if np.linalg.cond(gram) > 1e12:  # a track that never turns: nothing tells c from rho
+        return coef[:2], np.full(2, math.inf), rest, ok, dt
+    se = np.sqrt(np.maximum(np.diag(np.linalg.inv(gram))[:2] * scale, 0.0))
+    return coef[:2], se, rest, ok, dt
 
 
 def _across_drift(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
@@ -662,28 +758,29 @@ def identify(s: Samples) -> IdentifyResult:
 
     unidentified = _unidentified(excitation, theta, se, yaw_limit, yaw_flown, len(s.t_yaw_s))
     yaw_value = yaw_limit if yaw_limit is not None else max(yaw_flown, math.radians(1.0))
-    bias, bias_tc, bias_se, bias_tc_se, pos_delay, pos_delay_se = _identify_bias(s, quality, unidentified)
+    drift_values, drift_errors = _identify_bias(s, quality, unidentified)
     model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
                          speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
                          tail_share=float(theta[5]), tail_tc_s=float(theta[6]),
-                         yaw_rate_max_deg_s=math.degrees(yaw_value), vel_bias_m_s=bias, vel_bias_tc_s=bias_tc,
-                         pos_delay_s=pos_delay)
+                         yaw_rate_max_deg_s=math.degrees(yaw_value), **drift_values)
     std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
-    std.update({"vel_bias_m_s": bias_se, "vel_bias_tc_s": bias_tc_se, "pos_delay_s": pos_delay_se})
+    std.update(drift_errors)
     return IdentifyResult(model=model, std_errors=std, quality=quality, excitation=excitation,
                           unidentified=unidentified)
 
 
 def _identify_bias(s: Samples, quality: dict[str, float | str],
-                   unidentified: dict[str, str]) -> tuple[float, float, float, float, float, float]:
-    """The velocity bias of :func:`identify` (value, time constant, their standard errors) and the
-    position's delay (:func:`position_delay`, and its standard error); adds the measured drift to
-    ``quality`` and what the log cannot pin down to ``unidentified``. The bias is measured on the
-    drift that the delay does not explain."""
+                   unidentified: dict[str, str]) -> tuple[dict[str, float], dict[str, float]]:
+    """The estimate's errors that :func:`identify` measures, besides the response: the position's
+    delay (:func:`position_delay`), the velocity's constant offset (:func:`velocity_offset`) and
+    its bias (:func:`velocity_bias`, on the drift that the delay and the offset do not explain);
+    ``(values, standard errors)``, both keyed by the ``vehicle:`` block's names. Adds the measured
+    drift to ``quality`` and what the log cannot pin down to ``unidentified``."""
+    keys = ("vel_bias_m_s", "vel_bias_tc_s", "vel_offset_m_s", "pos_delay_s")
     if s.pos_ne_m is None:
-        why = "no positions in the log"
-        unidentified["vel_bias_m_s"] = unidentified["vel_bias_tc_s"] = unidentified["pos_delay_s"] = why
-        return 0.0, NO_BIAS_TC_S, math.inf, math.inf, 0.0, math.inf
+        unidentified.update(dict.fromkeys(keys, "no positions in the log"))
+        return ({"vel_bias_m_s": 0.0, "vel_bias_tc_s": NO_BIAS_TC_S, "vel_offset_m_s": 0.0, "pos_delay_s": 0.0},
+                dict.fromkeys(keys, math.inf))
     delay, delay_se = position_delay(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s)
     quality["pos_delay_fitted_s"] = delay
     if math.isfinite(delay_se) and abs(delay) <= 2.0 * delay_se:
@@ -693,7 +790,10 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
                                        "the log to tell the position's delay from its drift")
         delay = 0.0
     delay = max(0.0, delay)  # a position ahead of the velocity is not modelled
-    bias, tc, se, tc_se, drift = velocity_bias(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay)
+    offset_ne, offset, offset_se = _identify_offset(s, delay, unidentified)
+    # the bias is what wanders beside the offset: the offset's own drift is taken out first
+    past_offset = s.pos_ne_m - np.outer(s.t_s - s.t_s[0], offset_ne)
+    bias, tc, se, tc_se, drift = velocity_bias(s.t_s, past_offset, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay)
     quality.update({f"position_drift_{lag:g}s_m": d for lag, d in drift.items()})
     if drift.get(1.0, math.inf) < BIAS_NEGLIGIBLE_M_S * 1.0:
         # Under a centimetre over a second: no bias to speak of. What drift there is, the rounding
@@ -707,7 +807,27 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
     unidentified.update(_bias_unidentified(bias, tc, se, tc_se, bool(drift)))
     if bias < BIAS_NEGLIGIBLE_M_S:
         tc = NO_BIAS_TC_S  # no bias to speak of: its time constant means nothing
-    return bias, tc, se, tc_se, delay, delay_se
+    return ({"vel_bias_m_s": bias, "vel_bias_tc_s": tc, "vel_offset_m_s": offset, "pos_delay_s": delay},
+            {"vel_bias_m_s": se, "vel_bias_tc_s": tc_se, "vel_offset_m_s": offset_se, "pos_delay_s": delay_se})
+
+
+def _identify_offset(s: Samples, delay_s: float, unidentified: dict[str, str]) -> tuple[np.ndarray, float, float]:
+    """The velocity's constant offset in this log (:func:`velocity_offset`): ``(offset_ne_m_s,
+    sigma, se)``, ``sigma`` the standard deviation per axis that this one draw stands for (the
+    RMS of its components past their errors, as :func:`pooled_velocity_offset` takes it over
+    several flights). An offset under a millimetre a second, or one the log's turns cannot tell
+    from a turned velocity, is none (the latter named in ``unidentified``)."""
+    offset_ne, offset_se, *_ = velocity_offset(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s,
+                                               pos_delay_s=delay_s)
+    se = float(np.sqrt(np.mean(offset_se ** 2)))
+    sigma = math.sqrt(max(0.0, float(np.mean(offset_ne ** 2 - offset_se ** 2)))) if math.isfinite(se) else 0.0
+    if not se <= MAX_RELATIVE_SE_BIAS_TC * max(sigma, BIAS_NEGLIGIBLE_M_S):
+        unidentified["vel_offset_m_s"] = (f"standard error {se:.2g} m/s: the track turns too little in the log to "
+                                          "tell a constant velocity offset from a turned velocity")
+        return np.zeros(2), 0.0, se
+    if sigma < OFFSET_NEGLIGIBLE_M_S:
+        return np.zeros(2), 0.0, se
+    return offset_ne, sigma, se
 
 
 def _bias_unidentified(bias: float, tc: float, se: float, tc_se: float, measured: bool) -> dict[str, str]:

@@ -41,7 +41,7 @@ def test_a_copter_facing_north_turns_to_the_path_going_east_before_it_starts(tmp
     port = free_udp_port()
     mock = MockProcess(["--autopilot", autopilot, "--vehicle", "copter", "--link", f"udpout:127.0.0.1:{port}",
                         "--speedup", f"{SPEEDUP:g}", "--start-yaw-deg", "0", "--vel-bias-m-s", "0",
-                        "--offboard-loss-s", str(SPEEDUP), "--quiet"])
+                        "--vel-offset-m-s", "0", "--offboard-loss-s", str(SPEEDUP), "--quiet"])
     mock.start(timeout_s=60.0)
     tlog = tmp_path / "f.tlog"
     opts = FlyOptions(connect=f"udpin:127.0.0.1:{port}", rate_hz=50.0, clock="autopilot", arm=True,

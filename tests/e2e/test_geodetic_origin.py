@@ -70,7 +70,7 @@ def start_mock(port, start_ned, extra=()):
         "--start-alt-m", "10", "--start-yaw-deg=90", "--start-airborne",
         "--origin", f"{MOCK_LAT_DEG},{MOCK_LON_DEG},{MOCK_ALT_M}", "--quiet",
         "--offboard-loss-s", str(SPEEDUP), "--pace-lead-s", "0.04",
-        "--vel-bias-m-s", "0",  # the frames are the subject here: no estimator drift in the track
+        "--vel-bias-m-s", "0", "--vel-offset-m-s", "0",  # the frames are the subject here: no estimator drift in the track
         *extra,
     ])
     mock.start(timeout_s=60.0)

@@ -145,7 +145,7 @@ class Mock(Proc):
                 # The link is the subject here: no velocity-estimate drift (a random walk of the
                 # track, 0.18 m/s on the PX4 model) to blur the error bounds. It has its own tests
                 # (tests/sim/test_identify.py, tests/e2e/test_climb_hold.py).
-                "--vel-bias-m-s", "0",
+                "--vel-bias-m-s", "0", "--vel-offset-m-s", "0",
                 "--duration-s", "180"]  # a backstop: no mock outlives a failed test by long
         if tlog is not None:
             argv += ["--tlog", str(tlog)]

@@ -44,7 +44,7 @@ def send_paced(sock: socket.socket, address, datagrams: list[bytes]) -> None:
 
 def test_each_kind_of_bad_datagram_is_counted_by_reason_and_moves_nothing(mock_factory):
     mock, client = mock_factory("--autopilot", "ardupilot", "--start-airborne", "--start-alt-m", "10",
-                                "--speedup", "4", "--vel-bias-m-s", "0")  # a hover that stays put
+                                "--speedup", "4", "--vel-bias-m-s", "0", "--vel-offset-m-s", "0")  # a hover that stays put
     address = mock_address(client)
     assert client.command(M.MAV_CMD_DO_SET_MODE, 1, 4) == M.MAV_RESULT_ACCEPTED  # GUIDED: obeys targets
     assert client.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 32, 50000) == M.MAV_RESULT_ACCEPTED

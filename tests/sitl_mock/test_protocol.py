@@ -246,7 +246,8 @@ def test_duration_runs_in_simulated_time_and_speedup_shortens_the_wall_time(caps
 def test_px4_do_reposition_as_command_int_goes_to_hold_at_the_geodetic_point(mock_factory):
     # 0.0003 deg of latitude north of the origin is 0.0003 * pi/180 * 6378137 = 33.40 m.
     _, client = mock_factory("--start-airborne", "--start-alt-m", "10", "--speedup", "8",
-                             "--origin", "47.0,8.0,400.0", "--vel-bias-m-s", "0")  # holds exactly
+                             "--origin", "47.0,8.0,400.0", "--vel-bias-m-s", "0",
+                             "--vel-offset-m-s", "0")  # holds exactly
     client.wait("HEARTBEAT")
     client.drain()
     client.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0,

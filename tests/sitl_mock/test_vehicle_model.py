@@ -246,9 +246,54 @@ def test_velocity_estimate_bias_drifts_the_position_as_a_gauss_markov_process():
         assert measured == pytest.approx(expected, rel=0.1), (lag_s, measured, expected)
 
 
+def test_a_velocity_offset_is_drawn_once_per_seed_and_flown_at_a_constant_rate():
+    # Holding a zero velocity estimate, the copter moves at its offset: the same displacement in
+    # every second, with the reported velocity at 0. Over 400 seeds the offsets on both axes (800
+    # draws of N(0, 0.05)) have a standard deviation within 10 % of 0.05 (the estimate's own
+    # spread is 2.5 %) and a mean within 3 standard errors (0.0053) of 0. The same seed draws the
+    # same offset.
+    sigma, dt = 0.05, 0.1
+    rates = []
+    for seed in range(400):
+        model = copter(vel_offset_m_s=sigma, seed=seed)
+        marks = []
+        for _ in range(2):
+            start = tuple(model.state.pos_ned_m[:2])
+            run_at(model, 1.0, dt)
+            marks.append((model.state.pos_ned_m[0] - start[0], model.state.pos_ned_m[1] - start[1]))
+        assert marks[1] == pytest.approx(marks[0], abs=1e-12)
+        assert max(abs(v) for v in model.state.vel_ned_m_s) < 1e-12
+        rates.extend(marks[0])
+    mean = sum(rates) / len(rates)
+    spread = math.sqrt(sum((r - mean) ** 2 for r in rates) / (len(rates) - 1))
+    assert spread == pytest.approx(sigma, rel=0.1)
+    assert abs(mean) < 3.0 * sigma / math.sqrt(len(rates))
+    again = copter(vel_offset_m_s=sigma, seed=0)
+    run_at(again, 1.0, dt)
+    assert tuple(again.state.pos_ned_m[:2]) == pytest.approx(tuple(rates[:2]), abs=1e-12)
+
+
+def test_an_offset_beside_the_bias_leaves_the_bias_as_it_was():
+    # The offset draws from its own stream: with it, the track is the bias's own track plus the
+    # offset's constant rate (so adding one to a model does not change the other's flights).
+    alone, both = copter(vel_bias_m_s=0.2, vel_bias_tc_s=2.0, seed=4), copter(vel_bias_m_s=0.2, vel_bias_tc_s=2.0,
+                                                                          vel_offset_m_s=0.03, seed=4)
+    offset_only = copter(vel_offset_m_s=0.03, seed=4)
+    for model in (alone, both, offset_only):
+        run_at(model, 20.0, 0.02)
+    for axis in range(2):
+        expected = alone.state.pos_ned_m[axis] + offset_only.state.pos_ned_m[axis]
+        assert both.state.pos_ned_m[axis] == pytest.approx(expected, abs=1e-9)
+
+
+def run_at(model: VehicleModel, seconds: float, dt: float, vel=(0.0, 0.0, 0.0)) -> None:
+    for _ in range(round(seconds / dt)):
+        model.step_multirotor(dt, vel, 0.0)
+
+
 def test_velocity_estimate_bias_does_not_move_a_copter_on_the_ground():
-    model = VehicleModel(VehicleParams(kind="copter", vel_bias_m_s=0.5, vel_bias_tc_s=1.0), (0.0, 0.0, 0.0), 0.0,
-                         airborne=False)
+    model = VehicleModel(VehicleParams(kind="copter", vel_bias_m_s=0.5, vel_bias_tc_s=1.0, vel_offset_m_s=0.5),
+                         (0.0, 0.0, 0.0), 0.0, airborne=False)
     for _ in range(500):
         model.step_multirotor(0.02, (0.0, 0.0, 0.0), 0.0, grounded=True)
     for _ in range(500):

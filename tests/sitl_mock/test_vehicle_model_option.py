@@ -55,6 +55,14 @@ def test_the_vehicle_model_file_sets_the_model_and_options_override_single_value
     vp = config("--vehicle-model", str(f)).vehicle_params
     assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (0.2, 5.0)
     assert config("--vehicle-model", str(f), "--vel-bias-m-s", "0").vehicle_params.vel_bias_m_s == 0.0
+    assert config("--vehicle-model", str(f)).vehicle_params.vel_offset_m_s == 0.0  # none in the file
+    f.write_text(f.read_text() + "  vel_offset_m_s: 0.01\n")
+    assert config("--vehicle-model", str(f)).vehicle_params.vel_offset_m_s == 0.01
+    assert config("--vehicle-model", str(f), "--vel-offset-m-s", "0").vehicle_params.vel_offset_m_s == 0.0
+    # without a file, the personality's: ArduCopter's offset, none for PX4
+    assert config("--autopilot", "ardupilot").vehicle_params.vel_offset_m_s == IDENTIFIED_COPTER_MODELS[
+        "ardupilot"]["vel_offset_m_s"] > 0.0
+    assert config("--autopilot", "px4").vehicle_params.vel_offset_m_s == 0.0
 
 
 @pytest.mark.parametrize("text, expected", [
