@@ -240,13 +240,13 @@ def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACRO
     positions.
     """
     segments = []
-    for f in _with_positions(flights, "pooled bias"):
+    for f, pos in _with_positions(flights, "pooled bias"):
         if past_offset:
-            _, _, across, ok, dt = velocity_offset(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s,
+            _, _, across, ok, dt = velocity_offset(f.t_s, pos, f.vel_ne_m_s, f.valid, f.t_autopilot_s,
                                                    min_speed_m_s, pos_delay_s)
         else:
-            across, ok, dt = _across_drift(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s,
-                                           min_speed_m_s, pos_delay_s)
+            across, ok, dt = _across_drift(f.t_s, pos, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s,
+                                           pos_delay_s)
         segments.append((across, ok))
     return _fit_bias_with_errors(segments, dt)
 
@@ -262,9 +262,8 @@ def pooled_velocity_offset(flights: list[Samples], min_speed_m_s: float = ACROSS
     sides and counts for little. ValueError when there are no flights or one has no positions.
     """
     terms = []
-    for f in _with_positions(flights, "pooled offset"):
-        c, s, *_ = velocity_offset(f.t_s, f.pos_ne_m, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s,
-                                   pos_delay_s)
+    for f, pos in _with_positions(flights, "pooled offset"):
+        c, s, *_ = velocity_offset(f.t_s, pos, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s, pos_delay_s)
         terms.extend((c * c - s * s)[np.isfinite(s)])
     if not terms:
         return 0.0, math.inf
@@ -274,16 +273,18 @@ def pooled_velocity_offset(flights: list[Samples], min_speed_m_s: float = ACROSS
     return sigma, (spread / (2.0 * sigma) if sigma > 0.0 else math.inf)
 
 
-def _with_positions(flights: list[Samples], what: str) -> list[Samples]:
-    """The flights, checked to be some, on one time step, each with positions (ValueError)."""
+def _with_positions(flights: list[Samples], what: str) -> list[tuple[Samples, np.ndarray]]:
+    """Each flight with its positions, checked to be some flights, on one time step, each with
+    positions (ValueError)."""
     if not flights:
         raise ValueError(f"{what}: expected at least one flight, got none")
     steps = {float(f.t_s[1] - f.t_s[0]) for f in flights if f.t_s.size > 1}
     if len(steps) != 1:
         raise ValueError(f"{what}: expected flights on one time step, got steps {sorted(steps)}")
-    if any(f.pos_ne_m is None for f in flights):
+    out = [(f, f.pos_ne_m) for f in flights if f.pos_ne_m is not None]
+    if len(out) < len(flights):
         raise ValueError(f"{what}: a flight has no positions")
-    return flights
+    return out
 
 
 def velocity_offset(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
@@ -790,7 +791,7 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
                                        "the log to tell the position's delay from its drift")
         delay = 0.0
     delay = max(0.0, delay)  # a position ahead of the velocity is not modelled
-    offset_ne, offset, offset_se = _identify_offset(s, delay, unidentified)
+    offset_ne, offset, offset_se = _identify_offset(s, s.pos_ne_m, delay, unidentified)
     # the bias is what wanders beside the offset: the offset's own drift is taken out first
     past_offset = s.pos_ne_m - np.outer(s.t_s - s.t_s[0], offset_ne)
     bias, tc, se, tc_se, drift = velocity_bias(s.t_s, past_offset, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay)
@@ -811,13 +812,14 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
             {"vel_bias_m_s": se, "vel_bias_tc_s": tc_se, "vel_offset_m_s": offset_se, "pos_delay_s": delay_se})
 
 
-def _identify_offset(s: Samples, delay_s: float, unidentified: dict[str, str]) -> tuple[np.ndarray, float, float]:
+def _identify_offset(s: Samples, pos_ne_m: np.ndarray, delay_s: float,
+                     unidentified: dict[str, str]) -> tuple[np.ndarray, float, float]:
     """The velocity's constant offset in this log (:func:`velocity_offset`): ``(offset_ne_m_s,
     sigma, se)``, ``sigma`` the standard deviation per axis that this one draw stands for (the
     RMS of its components past their errors, as :func:`pooled_velocity_offset` takes it over
     several flights). An offset under a millimetre a second, or one the log's turns cannot tell
     from a turned velocity, is none (the latter named in ``unidentified``)."""
-    offset_ne, offset_se, *_ = velocity_offset(s.t_s, s.pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s,
+    offset_ne, offset_se, *_ = velocity_offset(s.t_s, pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s,
                                                pos_delay_s=delay_s)
     se = float(np.sqrt(np.mean(offset_se ** 2)))
     sigma = math.sqrt(max(0.0, float(np.mean(offset_ne ** 2 - offset_se ** 2)))) if math.isfinite(se) else 0.0
