@@ -15,8 +15,10 @@ acceleration; in a turn at constant speed, the lateral acceleration)::
     dv     = (e - tail_share f) (1 - exp(-dt / lag_s)),   |dv| <= a_max_m_s2 dt  (one step dt)
 
 and the yaw rate follows its command clipped to ``yaw_rate_max_rad_s``. Apart from the response,
-the velocity estimate's bias (``vel_bias_m_s``, ``vel_bias_tc_s``) is measured from how the
-reported position leaves the integral of the reported velocity (:func:`velocity_bias`).
+the velocity estimate's errors are measured from how the reported position leaves the integral
+of the reported velocity: the position's delay (:func:`position_delay`), a constant offset
+(``vel_offset_m_s``, :func:`velocity_offset`) and the bias that wanders beside it
+(``vel_bias_m_s``, ``vel_bias_tc_s``, :func:`velocity_bias`).
 
 How it is fitted
 ----------------
