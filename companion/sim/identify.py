@@ -304,7 +304,9 @@ def velocity_offset(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarra
     angle ``rho`` (a drift across the track that never changes: no track moves by it, but it must
     not be taken for ``c``). ``c`` and ``rho`` are the least squares of the drift's changes over
     :data:`POSITION_DELAY_LAG_S` on those of ``integral(left)`` and ``integral(|v|)``; the
-    standard errors count one independent pair per lag, as :func:`position_delay` does. A log
+    standard errors count one independent pair per lag or per correlation time of what is left
+    (:func:`velocity_bias`'s ``tau``), whichever is longer: a bias that wanders slowly holds
+    still for a while, and looks like an offset over that while. A log
     whose track keeps one direction cannot tell ``c`` from ``rho``: its errors come out large
     (infinite if it never turns).
 
@@ -339,10 +341,12 @@ def velocity_offset(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarra
         return none
     coef, *_ = np.linalg.lstsq(dx, dy, rcond=None)
     residual = dy - dx @ coef
-    independent = max(1.0, float(use.sum()) / k)
+    rest = across - (x @ coef)[:, None]
+    # one independent pair per lag, or per correlation time of what is left if that is longer
+    fit = _fit_bias([(rest, ok)], dt)
+    independent = max(1.0, float(use.sum()) / max(k, fit[1] / dt if fit is not None else 0.0))
     scale = float(residual @ residual) / max(1, dy.size - 3) * dy.size / independent
     gram = dx.T @ dx
-    rest = across - (x @ coef)[:, None]
     if np.linalg.cond(gram) > 1e12:  # a track that never turns: nothing tells c from rho
         return coef[:2], np.full(2, math.inf), rest, ok, dt
     se = np.sqrt(np.maximum(np.diag(np.linalg.inv(gram))[:2] * scale, 0.0))
