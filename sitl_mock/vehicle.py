@@ -19,8 +19,8 @@ Copter
     not modelled for copters. What is modelled is the autopilot's **velocity-estimate bias**
     (``vel_bias_m_s``, ``vel_bias_tc_s``): the velocity loop holds its estimate, which is off by a
     slowly varying bias (a Gauss-Markov process on each horizontal axis) and by a constant offset
-    drawn once (``vel_offset_m_s``), so while airborne the
-    copter flies the reported velocity plus that bias, and its reported position (which the
+    drawn once (``vel_offset_m_s``), so while airborne the copter flies the reported velocity plus
+    that bias and offset, and its reported position (which the
     estimator ties to GPS) moves away from the integral of the reported velocity, as PX4's does
     in SIH (docs/vehicle_model.md). The reported position may also lag the vehicle's
     (``pos_delay_s``): ArduCopter SITL's estimator reports a position about 25 ms old beside a
