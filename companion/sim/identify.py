@@ -263,14 +263,14 @@ def pooled_velocity_offset(flights: list[Samples], min_speed_m_s: float = ACROSS
     the delta method. A flight whose track keeps one direction adds its large error to both
     sides and counts for little. ValueError when there are no flights or one has no positions.
     """
-    terms = []
+    parts = []
     for f, pos in _with_positions(flights, "pooled offset"):
         c, s, *_ = velocity_offset(f.t_s, pos, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s, pos_delay_s)
-        terms.extend((c * c - s * s)[np.isfinite(s)])
-    if not terms:
+        parts.append(_offset_terms(c, s))
+    values = np.concatenate(parts)
+    if not values.size:
         return 0.0, math.inf
-    values = np.array(terms)
-    sigma = math.sqrt(max(0.0, float(np.mean(values))))
+    sigma = _offset_sigma(values)
     spread = float(np.std(values, ddof=1)) / math.sqrt(values.size) if values.size > 1 else math.inf
     return sigma, (spread / (2.0 * sigma) if sigma > 0.0 else math.inf)
 
@@ -334,8 +334,7 @@ def velocity_offset(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarra
     none = (np.zeros(2), np.full(2, math.inf), across, ok, dt)
     if ok.size <= k:
         return none
-    breaks = np.cumsum(~ok)
-    use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
+    use = _pairs(ok, k)
     dx, dy = (x[k:] - x[:-k])[use], (across[k:, 0] - across[:-k, 0])[use]
     if dy.size < 10:
         return none
@@ -414,8 +413,7 @@ def position_delay(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray
     k = max(1, int(round(lag_s / dt)))
     if ok.size <= k:
         return 0.0, math.inf
-    breaks = np.cumsum(~ok)
-    use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
+    use = _pairs(ok, k)
     x = -(v[k:] - v[:-k])[use].ravel()
     y = (e[k:] - e[:-k])[use].ravel()
     sxx = float(x @ x)
@@ -460,15 +458,15 @@ def _fit_bias(segments: list[tuple[np.ndarray, np.ndarray]], dt: float) -> tuple
     ``(e, ok)`` per flight (see :func:`velocity_bias`); None when fewer than three lags can be
     measured. A flight adds its pairs at a lag up to a quarter of its own valid span."""
     # Per flight: its valid span, and where a pair is usable (no invalid sample between its ends).
-    flights = [(e, ok, float(ok.sum()) * dt, np.cumsum(~ok)) for e, ok in segments]
+    flights = [(e, ok, float(ok.sum()) * dt) for e, ok in segments]
     lags, meas, pairs = [], [], []
     for lag in BIAS_LAGS_S:
         k = int(round(lag / dt))
         squares, count, used = 0.0, 0, 0
-        for e, ok, span, breaks in flights:
+        for e, ok, span in flights:
             if k < 1 or lag > span / 4.0:
                 continue
-            use = ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k])
+            use = _pairs(ok, k)
             d = e[k:][use] - e[:-k][use]
             squares += float(np.sum(d * d))
             count += d.size
@@ -494,6 +492,23 @@ def _fit_bias(segments: list[tuple[np.ndarray, np.ndarray]], dt: float) -> tuple
         x = least_squares(lambda z, w=w: (log_d(z) - log_meas) * w, x, method="lm").x
     sigma, tau = (float(v) for v in np.exp(x))
     return sigma, tau, dict(zip(lags, meas))
+
+
+def _pairs(ok: np.ndarray, k: int) -> np.ndarray:
+    """Where a pair of samples ``k`` apart can be used: both valid and no invalid sample between
+    them (``k < len(ok)``)."""
+    breaks = np.cumsum(~ok)
+    return np.asarray(ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k]), bool)
+
+
+def _offset_terms(offset_ne: np.ndarray, se_ne: np.ndarray) -> np.ndarray:
+    """``c^2 - s^2`` for each offset component measured (finite error ``s``): on average ``sigma^2``."""
+    return np.asarray((offset_ne * offset_ne - se_ne * se_ne)[np.isfinite(se_ne)], float)
+
+
+def _offset_sigma(terms: np.ndarray) -> float:
+    """The offset's standard deviation from :func:`_offset_terms` (0 where they say none)."""
+    return math.sqrt(max(0.0, float(np.mean(terms)))) if terms.size else 0.0
 
 
 def _unit_lateral(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -828,7 +843,7 @@ def _identify_offset(s: Samples, pos_ne_m: np.ndarray, delay_s: float,
     offset_ne, offset_se, *_ = velocity_offset(s.t_s, pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s,
                                                pos_delay_s=delay_s)
     se = float(np.sqrt(np.mean(offset_se ** 2)))
-    sigma = math.sqrt(max(0.0, float(np.mean(offset_ne ** 2 - offset_se ** 2)))) if math.isfinite(se) else 0.0
+    sigma = _offset_sigma(_offset_terms(offset_ne, offset_se))
     if not se <= MAX_RELATIVE_SE_BIAS_TC * max(sigma, BIAS_NEGLIGIBLE_M_S):
         unidentified["vel_offset_m_s"] = (f"standard error {se:.2g} m/s: the track turns too little in the log to "
                                           "tell a constant velocity offset from a turned velocity")
