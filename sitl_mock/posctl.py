@@ -16,10 +16,12 @@ velocity targets (``ModeGuided::velaccel_control_run``, ArduPilot master) it
 So the vehicle chases a trajectory that leaves at the limit and can pull more than ``WPNAV_ACCEL``
 to catch up with it: from a hover the real SITL gathers speed faster than a first-order lag with
 a 2.5 m/s^2 limit would (docs/real_firmware.md). :class:`NEPositionController` is that chain with
-the firmware's default copter parameters, behind a dead time, followed by the airframe's lag; it
-returns the acceleration the vehicle flies. The mock's ArduPilot copter flies it in GUIDED velocity
-control. The dead time was identified from the shared ArduCopter identification flight, which
-asked for no airframe lag: any made the fit worse (docs/sitl_mock.md).
+the firmware's default copter parameters, behind a short dead time, followed by the airframe: a
+lag on the acceleration the controller asks for, and the air's drag, which the velocity loop's
+integrator has to hold (ArduCopter SITL's copter leans about 11.5 deg to cruise at 5 m/s). It returns
+the acceleration the vehicle flies. The mock's ArduPilot copter flies it in GUIDED velocity
+control. The drag was measured from the shared ArduCopter identification flight's lean at steady
+speeds, the dead time and the lag were then fitted to the same flight (docs/sitl_mock.md).
 
 Frames: NE horizontal components, metres, m/s, m/s^2; plain floats (one step is a few
 microseconds at the mock's 400 Hz).
@@ -40,11 +42,14 @@ CORNER_ACCELERATION_RATIO = 1.0 / math.sqrt(2.0)  # AP_Math/control.h
 class PosControlParams:
     """ArduCopter's parameters of the chain, in SI units (defaults: the firmware's, copter).
 
-    ``input_delay_s`` and ``airframe_lag_s`` are not parameters of the firmware. The first is the
-    dead time between a target leaving the companion and the controller acting on it (link,
-    scheduler, the airframe's own start); the second a first-order lag on the acceleration the
-    controller asks for (attitude loop and motors). Both were fitted to the shared ArduCopter
-    identification flight: 0.13 s, and no lag.
+    The last four are not parameters of the firmware but of the airframe it flies:
+    ``input_delay_s`` is the dead time between a target leaving the companion and the controller
+    acting on it (link, scheduler); ``airframe_lag_s`` a first-order lag on the acceleration the
+    controller asks for (attitude loop and motors); the drag decelerates the vehicle by
+    ``(drag_linear_1_s + drag_quadratic_1_m * |v|) v``. The drag is ArduCopter SITL's default
+    copter's (momentum drag of the rotors, linear, and the body's, quadratic), measured from the
+    shared identification flight's lean at 3, 5 and 8 m/s; the dead time (0.02 s) and the lag
+    (0.18 s) were fitted to the same flight with that drag (docs/sitl_mock.md).
     """
 
     accel_max_m_s2: float = 2.5  # WPNAV_ACCEL 250 cm/s^2
@@ -57,8 +62,10 @@ class PosControlParams:
     vel_filter_hz: float = 5.0  # PSC_VELXY_FLTE, PSC_VELXY_FLTD
     speed_max_m_s: float = 10.0  # WPNAV_SPEED 1000 cm/s: the position correction's speed limit
     lean_max_rad: float = math.radians(30.0)  # ANGLE_MAX 3000 cdeg
-    input_delay_s: float = 0.13
-    airframe_lag_s: float = 0.0
+    input_delay_s: float = 0.02
+    airframe_lag_s: float = 0.18
+    drag_linear_1_s: float = 0.243
+    drag_quadratic_1_m: float = 0.0316
 
     def __post_init__(self) -> None:
         for name in ("accel_max_m_s2", "jerk_max_m_s3", "vel_filter_hz", "speed_max_m_s", "lean_max_rad"):
@@ -66,7 +73,7 @@ class PosControlParams:
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("pos_p_1_s", "vel_p_1_s", "vel_i_1_s2", "vel_d", "vel_imax_m_s2", "input_delay_s",
-                     "airframe_lag_s"):
+                     "airframe_lag_s", "drag_linear_1_s", "drag_quadratic_1_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -173,12 +180,15 @@ class NEPositionController:
               acc_ne_m_s2: tuple[float, float]) -> None:
         """Start the trajectory at the vehicle's state, as ``init_NE_controller`` does: desired
         position and velocity the vehicle's, desired acceleration zero, and the velocity loop's
-        integrator holding the acceleration the vehicle flies, so the command carries on from it."""
+        integrator holding what the airframe pushes with (the acceleration it flies plus the drag
+        at its velocity), so the command carries on from it."""
         self.desired_pos_ne_m = (float(pos_ne_m[0]), float(pos_ne_m[1]))
         self.desired_vel_ne_m_s = (float(vel_ne_m_s[0]), float(vel_ne_m_s[1]))
         self.desired_acc_ne_m_s2 = (0.0, 0.0)
         self.acc_ne_m_s2 = (float(acc_ne_m_s2[0]), float(acc_ne_m_s2[1]))  # what the airframe flies
-        self._integrator = _limit_length(self.acc_ne_m_s2[0], self.acc_ne_m_s2[1], self.params.vel_imax_m_s2)
+        dn, de = self.drag_ne_m_s2(vel_ne_m_s)
+        self._thrust = (self.acc_ne_m_s2[0] + dn, self.acc_ne_m_s2[1] + de)  # the lag's output, before drag
+        self._integrator = _limit_length(self._thrust[0], self._thrust[1], self.params.vel_imax_m_s2)
         self._error = None  # the filtered velocity error (None: take the first one as it is)
         self._derivative = (0.0, 0.0)
         self._queue.clear()
@@ -203,7 +213,7 @@ class NEPositionController:
                vel_ne_m_s: tuple[float, float]) -> tuple[float, float]:
         """One step: the velocity target given now, the vehicle's (estimated) position and
         velocity; returns the horizontal acceleration the vehicle flies (NE, m/s^2): the
-        controller's command through the airframe's lag."""
+        controller's command through the airframe's lag, less the drag at that velocity."""
         p = self.params
         self._t_s += dt_s
         vin_n, vin_e = self._delayed((float(vel_target_ne_m_s[0]), float(vel_target_ne_m_s[1])))
@@ -245,8 +255,17 @@ class NEPositionController:
         out_e = p.vel_p_1_s * fe + self._integrator[1] + p.vel_d * self._derivative[1] + ae
         # ... and the lean-angle limit (limit_accel_xy: the cross-track part first).
         cmd_n, cmd_e = cross_first_limited(out_n, out_e, vn, ve, GRAVITY_M_S2 * math.tan(p.lean_max_rad))
-        # The attitude loop and the motors deliver it through a lag.
+        # The attitude loop and the motors deliver it through a lag, and the air takes its drag.
         k = 1.0 if p.airframe_lag_s <= 0.0 else 1.0 - math.exp(-dt_s / p.airframe_lag_s)
-        fly_n, fly_e = self.acc_ne_m_s2
-        self.acc_ne_m_s2 = (fly_n + (cmd_n - fly_n) * k, fly_e + (cmd_e - fly_e) * k)
+        tn, te = self._thrust
+        self._thrust = (tn + (cmd_n - tn) * k, te + (cmd_e - te) * k)
+        dn, de = self.drag_ne_m_s2(vel_ne_m_s)
+        self.acc_ne_m_s2 = (self._thrust[0] - dn, self._thrust[1] - de)
         return self.acc_ne_m_s2
+
+    def drag_ne_m_s2(self, vel_ne_m_s: tuple[float, float]) -> tuple[float, float]:
+        """The deceleration the air causes at a velocity: ``(linear + quadratic |v|) v`` (NE, m/s^2)."""
+        p = self.params
+        vn, ve = float(vel_ne_m_s[0]), float(vel_ne_m_s[1])
+        c = p.drag_linear_1_s + p.drag_quadratic_1_m * math.hypot(vn, ve)
+        return c * vn, c * ve
