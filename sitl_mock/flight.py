@@ -565,7 +565,7 @@ class FlightLogic:
         behaviour = self.mode.behaviour
         vel = [0.0, 0.0, 0.0]
         acc_ff = (0.0, 0.0, 0.0)
-        acc_ne = None
+        acc_ne = thrust_ne = None
         yaw_rate = 0.0
         posctl_flying, self._posctl_flying = self._posctl_flying, False
         if not self.armed:
@@ -593,6 +593,7 @@ class FlightLogic:
                     if not posctl_flying:
                         self.posctl.reset(pos_ne, vel_ne, (s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]))
                     acc_ne = self.posctl.update(dt_s, (vel[0], vel[1]), pos_ne, vel_ne)
+                    thrust_ne = self.posctl.thrust_ne_m_s2
                     self._posctl_flying = True
         elif behaviour in ("hold", "manual", "mission"):
             if s.on_ground:
@@ -607,7 +608,7 @@ class FlightLogic:
             yaw_rate = self._yaw_rate_to(self._yaw_hold_rad)
         elif behaviour == "rtl":
             vel = self._rtl_multirotor()
-        self.model.step_multirotor(dt_s, tuple(vel), yaw_rate, acc_ff, acc_ne_m_s2=acc_ne)
+        self.model.step_multirotor(dt_s, tuple(vel), yaw_rate, acc_ff, acc_ne_m_s2=acc_ne, thrust_ne_m_s2=thrust_ne)
 
     def _follow(self, sp: Setpoint) -> tuple[list[float], tuple, float]:
         """Velocity command, acceleration feed-forward and yaw-rate command from a guided setpoint."""

@@ -263,6 +263,11 @@ class NEPositionController:
         self.acc_ne_m_s2 = (self._thrust[0] - dn, self._thrust[1] - de)
         return self.acc_ne_m_s2
 
+    @property
+    def thrust_ne_m_s2(self) -> tuple[float, float]:
+        """The horizontal acceleration the thrust gives (the flown one plus the drag): the lean."""
+        return self._thrust
+
     def drag_ne_m_s2(self, vel_ne_m_s: tuple[float, float]) -> tuple[float, float]:
         """The deceleration the air causes at a velocity: ``(linear + quadratic |v|) v`` (NE, m/s^2)."""
         p = self.params

@@ -253,7 +253,8 @@ class VehicleModel:
     # ------------------------------------------------------------------ copter and rover
     def step_multirotor(self, dt_s: float, vel_cmd_ned_m_s: tuple[float, float, float], yaw_rate_cmd_rad_s: float,
                         acc_ff_ned_m_s2: tuple[float, float, float] = (0.0, 0.0, 0.0), grounded: bool = False,
-                        acc_ne_m_s2: tuple[float, float] | None = None) -> None:
+                        acc_ne_m_s2: tuple[float, float] | None = None,
+                        thrust_ne_m_s2: tuple[float, float] | None = None) -> None:
         """Advance a copter or rover by one step.
 
         Parameters
@@ -272,6 +273,9 @@ class VehicleModel:
             The horizontal acceleration to fly, as an autopilot's own position controller produced
             it (``sitl_mock.posctl``): the horizontal velocity command and this model's horizontal
             response (lag, limit, sag, tail, second lag) are then not used.
+        thrust_ne_m_s2 : tuple of float, optional
+            The horizontal acceleration the thrust gives before the drag takes its share (the
+            lean the attitude shows); default: the acceleration flown.
         """
         p = self.params
         s = self.state
@@ -309,11 +313,12 @@ class VehicleModel:
         else:
             s.yaw_rate_rad_s += (r_cmd - s.yaw_rate_rad_s) * _lag_gain(dt_s, p.tau_yaw_rate_s)
             s.yaw_rad = wrap_pi(s.yaw_rad + s.yaw_rate_rad_s * dt_s)
-        # Attitude of a multicopter follows from the acceleration it produces (small-angle tilt).
+        # Attitude of a multicopter follows from the acceleration its thrust gives.
         if p.kind == "copter":
+            tn, te = thrust_ne_m_s2 if thrust_ne_m_s2 is not None else s.acc_ned_m_s2[:2]
             cy, sy = math.cos(s.yaw_rad), math.sin(s.yaw_rad)
-            a_fwd = cy * s.acc_ned_m_s2[0] + sy * s.acc_ned_m_s2[1]
-            a_right = -sy * s.acc_ned_m_s2[0] + cy * s.acc_ned_m_s2[1]
+            a_fwd = cy * tn + sy * te
+            a_right = -sy * tn + cy * te
             s.pitch_rad = -math.atan2(a_fwd, GRAVITY_M_S2)
             s.roll_rad = math.atan2(a_right, GRAVITY_M_S2)
         s.airspeed_m_s = math.hypot(v_new[0], v_new[1])
