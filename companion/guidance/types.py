@@ -123,7 +123,8 @@ class GuidanceParams:
 MAX_TAIL_SHARE = 0.95
 #: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
-                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "vel_offset_m_s", "pos_delay_s")
+                      "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "vel_bias_jerk_s2",
+                      "vel_bias_jerk_max_m_s3", "vel_offset_m_s", "pos_delay_s")
 
 
 @dataclass(frozen=True)
@@ -157,6 +158,11 @@ class VehicleModel:
         estimate, so the vehicle drifts by the bias, and the reported position leaves the integral
         of the reported velocity. The mock flies it; the guidance and the offline simulator do not
         use it (it is a disturbance, not a response to the command).
+    vel_bias_jerk_s2, vel_bias_jerk_max_m_s3 : that bias wanders more while the vehicle
+        manoeuvres: its level is ``sqrt(vel_bias_m_s^2 + (vel_bias_jerk_s2 * min(j,
+        vel_bias_jerk_max_m_s3))^2)``, ``j`` the manoeuvre jerk (``|d a / dt|`` low-passed over
+        0.5 s; ``companion.sim.wander``). ``vel_bias_jerk_s2 >= 0`` (0: one level throughout;
+        ArduCopter SITL's: about 0.023), ``vel_bias_jerk_max_m_s3 > 0``. The mock flies it.
     vel_offset_m_s : beside that bias, the estimate misses a velocity that stays put for a whole
         flight: an offset on each horizontal axis drawn once, with this standard deviation (>= 0;
         0: none; ArduCopter SITL's: about 1 cm/s). On a straight leg an autopilot's position loop
@@ -177,6 +183,8 @@ class VehicleModel:
     yaw_rate_max_deg_s: float = 90.0
     vel_bias_m_s: float = 0.0
     vel_bias_tc_s: float = 3.0
+    vel_bias_jerk_s2: float = 0.0
+    vel_bias_jerk_max_m_s3: float = 1.0
     vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
 
@@ -185,7 +193,7 @@ class VehicleModel:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise ValueError(f"vehicle.{name}: expected a finite number, got {value!r}")
-            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s", "tail_tc_s", "vel_bias_tc_s")
+            strict = name in ("a_max_m_s2", "yaw_rate_max_deg_s", "tail_tc_s", "vel_bias_tc_s", "vel_bias_jerk_max_m_s3")
             if value < 0 or (strict and value == 0):
                 raise ValueError(f"vehicle.{name}: expected a number {'>' if strict else '>='} 0, got {value!r}")
         if self.tail_share > MAX_TAIL_SHARE:

@@ -386,6 +386,11 @@ MISSION = Object(
                                           "(the mock flies it; the guidance does not use it)", default=0.0),
                     "vel_bias_tc_s": Field(Number(exclusive_minimum=0, maximum=600), "correlation time "
                                            "of that bias", default=3.0),
+                    "vel_bias_jerk_s2": Field(Number(minimum=0, maximum=10), "how much that bias's level "
+                                              "grows per m/s^3 of the manoeuvre's jerk (0: one level; the "
+                                              "mock flies it)", default=0.0),
+                    "vel_bias_jerk_max_m_s3": Field(Number(exclusive_minimum=0, maximum=100), "the jerk above "
+                                                    "which the bias's level grows no more", default=1.0),
                     "vel_offset_m_s": Field(Number(minimum=0, maximum=10), "standard deviation of the "
                                             "velocity estimate's offset, drawn once per flight on each "
                                             "horizontal axis (the mock flies it; the guidance does not "
