@@ -18,8 +18,10 @@ from companion.errors import CompanionError, LogError
 from companion.guidance.types import VEHICLE_MODEL_KEYS
 
 _DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "tail_share": 3, "tail_tc_s": 3,
-             "speed_sag_s": 3, "yaw_rate_max_deg_s": 1, "vel_bias_m_s": 3, "vel_bias_tc_s": 2,
-             "vel_offset_m_s": 3, "pos_delay_s": 3}
+             "speed_sag_s": 3, "yaw_rate_max_deg_s": 1, "vel_bias_m_s": 4, "vel_bias_tc_s": 2,
+             "vel_bias_jerk_s2": 4, "vel_bias_jerk_max_m_s3": 2, "vel_offset_m_s": 4, "pos_delay_s": 3}
+# Values a grid chooses or a bound the log shows: printed without a standard error.
+_NO_ERROR = ("yaw_rate_max_deg_s", "vel_bias_jerk_max_m_s3")
 
 
 class IdentificationRefused(CompanionError):
@@ -77,12 +79,17 @@ def run(args) -> int:
               f"model: {q['model_structure']}")
         for key in VEHICLE_MODEL_KEYS:
             se = result.std_errors.get(key)
-            se_text = f" +- {se:.3g}" if se is not None and key != "yaw_rate_max_deg_s" else ""
+            se_text = f" +- {se:.3g}" if se is not None and key not in _NO_ERROR else ""
             flag = "  (not identified)" if key in result.unidentified else ""
             print(f"  {key:20s} {values[key]:.{_DECIMALS[key]}f}{se_text}{flag}")
         print(f"  lateral acceleration: one-step prediction explains {q['vaf_one_step']:.1%} of its variance "
               f"(residual RMS {q['residual_rms_one_step_m_s2']:.3f} m/s^2); free run {q['vaf_free_run']:.1%} "
               f"(RMS {q['residual_rms_free_run_m_s2']:.3f} m/s^2)")
+        if "vel_bias_jerk_fitted_s2" in q:
+            print(f"  velocity bias growing with the jerk: {q['vel_bias_jerk_fitted_s2']:.4f} +- "
+                  f"{q['vel_bias_jerk_se_s2']:.2g} s^2 up to {q['vel_bias_jerk_max_fitted_m_s3']:.2f} m/s^3, "
+                  f"beside {q['vel_bias_still_m_s']:.4f} m/s ("
+                  f"{'kept' if values['vel_bias_jerk_s2'] > 0 else 'not clear of zero: one level kept'})")
         if "vel_bias_across_m_s" in q:
             print(f"  velocity bias across the track (the part that moves a track): {q['vel_bias_across_m_s']:.3f} "
                   f"+- {q['vel_bias_across_se_m_s']:.3g} m/s over {q['vel_bias_across_tc_s']:.2f} s")

@@ -18,7 +18,8 @@ and the yaw rate follows its command clipped to ``yaw_rate_max_rad_s``. Apart fr
 the velocity estimate's errors are measured from how the reported position leaves the integral
 of the reported velocity: the position's delay (:func:`position_delay`), a constant offset
 (``vel_offset_m_s``, :func:`velocity_offset`) and the bias that wanders beside it
-(``vel_bias_m_s``, ``vel_bias_tc_s``, :func:`velocity_bias`).
+(``vel_bias_m_s``, ``vel_bias_tc_s``, :func:`velocity_bias`), more while the vehicle manoeuvres
+where the log says so (``vel_bias_jerk_s2``, ``vel_bias_jerk_max_m_s3``, ``companion.sim.wander``).
 
 How it is fitted
 ----------------
@@ -58,6 +59,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter, savgol_filter
 
 from companion.guidance.types import VehicleModel
+from companion.sim.wander import JerkWander, fit_jerk_wander, manoeuvre_jerk_m_s3
 
 GRID_DT_S = 0.02  # resampling step (50 Hz, the rate the setpoints and positions are streamed at)
 MAX_COMMAND_GAP_S = 0.2  # a setpoint older than this: no command stream, the sample is not used
@@ -82,6 +84,8 @@ OFFSET_NEGLIGIBLE_M_S = 0.001  # a constant velocity offset below this: none (a 
 # The bias's correlation time shows only in how the drift bends over seconds, and a few minutes
 # of flight hold a few dozen independent samples of that: it is accepted to this share.
 MAX_RELATIVE_SE_BIAS_TC = 0.5
+#: The bias's growth with the jerk is kept when it stands this many standard errors clear of zero.
+JERK_WANDER_SIGNIFICANCE = 4.0
 
 PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s", "tail_share", "tail_tc_s")
 _LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0, 0.0, 0.05])
@@ -251,6 +255,21 @@ def pooled_across_track_bias(flights: list[Samples], min_speed_m_s: float = ACRO
                                            pos_delay_s)
         segments.append((across, ok))
     return _fit_bias_with_errors(segments, dt)
+
+
+def pooled_jerk_wander(flights: list[Samples], tc_s: float, min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
+                       pos_delay_s: float = 0.0) -> JerkWander | None:
+    """The wander that grows with the manoeuvre (``companion.sim.wander``), fitted to several
+    flights at once across the track, past each flight's offset (as :func:`pooled_across_track_bias`
+    with ``past_offset``), at the correlation time ``tc_s``. None when too few windows can be used;
+    ValueError as :func:`pooled_across_track_bias`."""
+    segments = []
+    for f, pos in _with_positions(flights, "pooled jerk wander"):
+        _, _, rest, ok, dt = velocity_offset(f.t_s, pos, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s,
+                                             pos_delay_s)
+        _, acc, *_ = _measured(f)
+        segments.append((rest, ok, manoeuvre_jerk_m_s3(acc, dt)))
+    return fit_jerk_wander(segments, dt, tc_s)
 
 
 def pooled_velocity_offset(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
@@ -829,8 +848,33 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
     unidentified.update(_bias_unidentified(bias, tc, se, tc_se, bool(drift)))
     if bias < BIAS_NEGLIGIBLE_M_S:
         tc = NO_BIAS_TC_S  # no bias to speak of: its time constant means nothing
-    return ({"vel_bias_m_s": bias, "vel_bias_tc_s": tc, "vel_offset_m_s": offset, "pos_delay_s": delay},
-            {"vel_bias_m_s": se, "vel_bias_tc_s": tc_se, "vel_offset_m_s": offset_se, "pos_delay_s": delay_se})
+    values = {"vel_bias_m_s": bias, "vel_bias_tc_s": tc, "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0,
+              "vel_offset_m_s": offset, "pos_delay_s": delay}
+    errors = {"vel_bias_m_s": se, "vel_bias_tc_s": tc_se, "vel_bias_jerk_s2": math.inf,
+              "vel_bias_jerk_max_m_s3": math.inf, "vel_offset_m_s": offset_se, "pos_delay_s": delay_se}
+    if bias >= BIAS_NEGLIGIBLE_M_S and "vel_bias_m_s" not in unidentified:
+        _identify_jerk_wander(s, past_offset, delay, values, errors, quality)
+    return values, errors
+
+
+def _identify_jerk_wander(s: Samples, pos_ne_m: np.ndarray, delay_s: float, values: dict[str, float],
+                          errors: dict[str, float], quality: dict[str, float | str]) -> None:
+    """Whether the bias wanders more while the vehicle manoeuvres (``companion.sim.wander``), at the
+    bias's fitted correlation time: where the jerk's share stands :data:`JERK_WANDER_SIGNIFICANCE`
+    standard errors clear of zero, the bias's level and that share replace the single level in
+    ``values`` and ``errors``. The fit goes to ``quality`` either way."""
+    e, ok, dt = _drift_ne(s.t_s, pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay_s)
+    _, acc, *_ = _measured(s)
+    fit = fit_jerk_wander([(e, ok, manoeuvre_jerk_m_s3(acc, dt))], dt, values["vel_bias_tc_s"])
+    if fit is None:
+        return
+    errors["vel_bias_jerk_s2"] = fit.se_jerk_gain_s2
+    quality.update({"vel_bias_still_m_s": fit.sigma_m_s, "vel_bias_jerk_fitted_s2": fit.jerk_gain_s2,
+                    "vel_bias_jerk_se_s2": fit.se_jerk_gain_s2, "vel_bias_jerk_max_fitted_m_s3": fit.jerk_max_m_s3})
+    if fit.jerk_gain_s2 > JERK_WANDER_SIGNIFICANCE * fit.se_jerk_gain_s2:
+        values.update(vel_bias_m_s=fit.sigma_m_s, vel_bias_jerk_s2=fit.jerk_gain_s2,
+                      vel_bias_jerk_max_m_s3=fit.jerk_max_m_s3)
+        errors.update(vel_bias_m_s=fit.se_sigma_m_s, vel_bias_jerk_s2=fit.se_jerk_gain_s2)
 
 
 def _identify_offset(s: Samples, pos_ne_m: np.ndarray, delay_s: float,
