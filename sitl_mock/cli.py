@@ -23,6 +23,7 @@ from sitl_mock.vehicle import VehicleParams
 _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
 _MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
                    "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0,
+                   "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0,
                    "vel_offset_m_s": 0.0, "pos_delay_s": 0.0}
 
 
@@ -116,8 +117,8 @@ def build_parser() -> argparse.ArgumentParser:
     add("--wind-ned-m-s", default="0,0", metavar="N,E",
         help="steady wind north,east (m/s) the plane drifts with (default 0,0)")
     add("--vel-bias-m-s", type=float, default=None,
-        help="standard deviation of the velocity estimate's bias the copter drifts by, m/s per horizontal axis "
-             "(default: the vehicle model's; 0: none)")
+        help="standard deviation of the velocity estimate's bias the copter drifts by, m/s per horizontal axis, "
+             "one level throughout (default: the vehicle model's, which may grow while manoeuvring; 0: none)")
     add("--vel-offset-m-s", type=float, default=None,
         help="standard deviation of the velocity estimate's constant offset, drawn once per flight (seeded), "
              "m/s per horizontal axis (default: the vehicle model's; 0: none)")
@@ -161,6 +162,8 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
             airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,
             roll_max_rad=math.radians(args.roll_max_deg), wind_ned_m_s=wind, pos_noise_m=args.pos_noise_m,
             vel_bias_m_s=vel_bias, vel_bias_tc_s=model["vel_bias_tc_s"],
+            vel_bias_jerk_s2=model["vel_bias_jerk_s2"] if args.vel_bias_m_s is None else 0.0,
+            vel_bias_jerk_max_m_s3=model["vel_bias_jerk_max_m_s3"],
             vel_offset_m_s=vel_offset, pos_delay_s=model["pos_delay_s"],
             seed=args.seed)
     except ValueError as err:

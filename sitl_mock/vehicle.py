@@ -53,6 +53,49 @@ GRAVITY_M_S2 = 9.80665
 VEHICLE_KINDS = ("copter", "plane", "rover")
 # Below this ground speed a rover turns on the spot from yaw-rate commands instead of following its track.
 ROVER_TRACK_SPEED_M_S = 0.3
+#: Time constant of the low-pass that turns ``|d a / dt|`` into the manoeuvre jerk that sizes the
+#: velocity bias's kicks (s); ``companion identify`` measures the jerk with the same constant.
+JERK_TC_S = 0.5
+JERK_SAMPLE_S = 0.02  # the velocity's sampling for the jerk: the 50 Hz a log holds
+JERK_SMOOTH_HALF = 7  # half-window of the velocity's smoother, in samples (0.3 s at 50 Hz)
+
+
+def _jerk_kernel(m: int) -> tuple[float, ...]:
+    """Weights of ``2 m + 3`` velocity samples (oldest first) giving the second difference of the
+    velocity smoothed by a quadratic Savitzky-Golay filter of ``2 m + 1`` samples (divide by the
+    step squared for the jerk): ``vs[c + 1] - 2 vs[c] + vs[c - 1]``."""
+    norm = (2 * m - 1) * (2 * m + 1) * (2 * m + 3)
+    h = {i: (3 * (3 * m * m + 3 * m - 1) - 15 * i * i) / norm for i in range(-m, m + 1)}
+    return tuple(h.get(i - 1, 0.0) - 2.0 * h.get(i, 0.0) + h.get(i + 1, 0.0) for i in range(-m - 1, m + 2))
+
+
+JERK_KERNEL = _jerk_kernel(JERK_SMOOTH_HALF)
+
+
+class ManoeuvreJerk:
+    """The manoeuvre jerk (m/s^3) as ``companion identify`` measures it from a log: the horizontal
+    velocity sampled every :data:`JERK_SAMPLE_S`, smoothed (quadratic Savitzky-Golay over 0.3 s),
+    differenced twice, its norm through a first-order low-pass of :data:`JERK_TC_S`. Causal, so
+    it runs 0.16 s behind the log's zero-phase smoother; the low-pass is slower than that."""
+
+    def __init__(self) -> None:
+        self._samples: deque = deque(maxlen=len(JERK_KERNEL))
+        self._since_s = JERK_SAMPLE_S  # sample at the first update
+        self.value_m_s3 = 0.0
+
+    def update(self, dt_s: float, vel_n_m_s: float, vel_e_m_s: float) -> float:
+        """Advance by ``dt_s`` with the velocity now; the jerk."""
+        self._since_s += dt_s
+        if self._since_s < JERK_SAMPLE_S - 1e-9:
+            return self.value_m_s3
+        self._since_s -= JERK_SAMPLE_S
+        self._samples.append((vel_n_m_s, vel_e_m_s))
+        if len(self._samples) == len(JERK_KERNEL):
+            jn = sum(k * v[0] for k, v in zip(JERK_KERNEL, self._samples))
+            je = sum(k * v[1] for k, v in zip(JERK_KERNEL, self._samples))
+            raw = math.hypot(jn, je) / (JERK_SAMPLE_S * JERK_SAMPLE_S)
+            self.value_m_s3 += (raw - self.value_m_s3) * (1.0 - math.exp(-JERK_SAMPLE_S / JERK_TC_S))
+        return self.value_m_s3
 
 
 def wrap_pi(angle_rad: float) -> float:
@@ -111,6 +154,11 @@ class VehicleParams:
         Copter: the velocity estimate's bias, a first-order Gauss-Markov process on each horizontal
         axis with this standard deviation (m/s, 0: none) and correlation time (s, > 0); airborne, the
         vehicle moves at the reported velocity plus the bias.
+    vel_bias_jerk_s2, vel_bias_jerk_max_m_s3 : float
+        Copter: the bias wanders more while the vehicle manoeuvres. Each step's kick is sized for
+        the level ``sqrt(vel_bias_m_s^2 + (vel_bias_jerk_s2 * min(j, vel_bias_jerk_max_m_s3))^2)``,
+        ``j`` the manoeuvre jerk: ``|d a / dt|`` of the horizontal acceleration, low-passed over
+        :data:`JERK_TC_S` (s^2 and m/s^3; 0: a bias of one level; docs/vehicle_model.md).
     vel_offset_m_s : float
         Copter: beside the bias, the velocity estimate misses a constant offset, drawn once (seeded)
         on each horizontal axis with this standard deviation (m/s, 0: none) and flown as the bias is.
@@ -142,6 +190,8 @@ class VehicleParams:
     pos_noise_m: float = 0.0
     vel_bias_m_s: float = 0.0
     vel_bias_tc_s: float = 3.0
+    vel_bias_jerk_s2: float = 0.0
+    vel_bias_jerk_max_m_s3: float = 1.0
     vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
     seed: int = 0
@@ -150,13 +200,13 @@ class VehicleParams:
         if self.kind not in VEHICLE_KINDS:
             raise ValueError(f"vehicle kind: expected one of {', '.join(VEHICLE_KINDS)}, got {self.kind!r}")
         positive = ("a_max_m_s2", "yaw_rate_max_rad_s", "v_max_m_s", "climb_rate_m_s", "descent_rate_m_s",
-                    "airspeed_min_m_s", "roll_max_rad", "tail_tc_s", "vel_bias_tc_s")
+                    "airspeed_min_m_s", "roll_max_rad", "tail_tc_s", "vel_bias_tc_s", "vel_bias_jerk_max_m_s3")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
-                     "speed_sag_s", "vel_bias_m_s", "vel_offset_m_s", "pos_delay_s"):
+                     "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_offset_m_s", "pos_delay_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -222,6 +272,7 @@ class VehicleModel:
         self._rng = random.Random(params.seed)
         self._bias_rng = random.Random(f"vel-bias:{params.seed}")  # its own stream: the noise's stays as it was
         self._bias_ne_m_s = (0.0, 0.0)  # the velocity estimate's bias (what the vehicle flies beyond it)
+        self._jerk = ManoeuvreJerk()  # the manoeuvre jerk that sizes the bias's kicks
         offset_rng = random.Random(f"vel-offset:{params.seed}")  # its own stream: the bias's stays as it was
         self._offset_ne_m_s = (offset_rng.gauss(0.0, params.vel_offset_m_s), offset_rng.gauss(0.0, params.vel_offset_m_s))
         self._cmd_queue: deque = deque()
@@ -295,7 +346,7 @@ class VehicleModel:
         s.acc_ned_m_s2 = [dvx / dt_s, dvy / dt_s, dvz / dt_s]
         v_new = [v[0] + dvx, v[1] + dvy, 0.0 if p.kind == "rover" else v[2] + dvz]
         self._move(v, v_new, dt_s)
-        if (p.vel_bias_m_s > 0.0 or p.vel_offset_m_s > 0.0) and p.kind == "copter":
+        if (p.vel_bias_m_s > 0.0 or p.vel_bias_jerk_s2 > 0.0 or p.vel_offset_m_s > 0.0) and p.kind == "copter":
             self._step_bias(dt_s)
         s.vel_ned_m_s = v_new
         if p.kind == "rover":
@@ -429,7 +480,12 @@ class VehicleModel:
         process) and, airborne, move the vehicle by it and by the offset: the loop holds the estimate."""
         p = self.params
         phi = math.exp(-dt_s / p.vel_bias_tc_s)
-        kick = p.vel_bias_m_s * math.sqrt(1.0 - phi * phi)
+        level = p.vel_bias_m_s
+        if p.vel_bias_jerk_s2 > 0.0:
+            v = self.state.vel_ned_m_s
+            jerk = p.vel_bias_jerk_s2 * min(self._jerk.update(dt_s, v[0], v[1]), p.vel_bias_jerk_max_m_s3)
+            level = math.hypot(level, jerk)
+        kick = level * math.sqrt(1.0 - phi * phi)
         g = self._bias_rng.gauss
         bn, be = self._bias_ne_m_s
         bn, be = phi * bn + kick * g(0.0, 1.0), phi * be + kick * g(0.0, 1.0)

@@ -246,6 +246,28 @@ def test_velocity_estimate_bias_drifts_the_position_as_a_gauss_markov_process():
         assert measured == pytest.approx(expected, rel=0.1), (lag_s, measured, expected)
 
 
+@pytest.mark.parametrize("radius_m, level", [(None, 0.01), (25.0, math.hypot(0.01, 0.04 * 0.2)),
+                                               (5.0, math.hypot(0.01, 0.04 * 1.0))])
+def test_the_bias_settles_to_the_level_the_manoeuvre_jerk_sets(radius_m, level):
+    # A circle flown at v has a constant jerk v^3 / r^2 (the acceleration v^2 / r turning at v / r):
+    # at 5 m/s, 0.2 m/s^3 on a 25 m circle and 5 m/s^3 on a 5 m one (capped at 1). Holding it,
+    # the bias settles to sqrt(0.01^2 + (0.04 min(j, 1))^2) per axis; a hover (None) to 0.01.
+    # 600 s hold about 370 correlation times per axis: the RMS of the bias lies within 12 % of
+    # the level (about 3 standard errors).
+    v, dt = 5.0, 0.01
+    model = copter(vel_bias_m_s=0.01, vel_bias_tc_s=1.63, vel_bias_jerk_s2=0.04, vel_bias_jerk_max_m_s3=1.0,
+                   tau_vel_s=0.05, seed=5)
+    omega = 0.0 if radius_m is None else v / radius_m
+    speed = 0.0 if radius_m is None else v
+    squares = []
+    for i in range(round(620.0 / dt)):
+        course = omega * i * dt
+        model.step_multirotor(dt, (speed * math.cos(course), speed * math.sin(course), 0.0), 0.0)
+        if i * dt >= 20.0:  # past the start, the jerk's low-pass and the bias settled
+            squares += [b * b for b in model._bias_ne_m_s]
+    assert math.sqrt(sum(squares) / len(squares)) == pytest.approx(level, rel=0.12)
+
+
 def test_a_velocity_offset_is_drawn_once_per_seed_and_flown_at_a_constant_rate():
     # Holding a zero velocity estimate, the copter moves at its offset: the same displacement in
     # every second, with the reported velocity at 0. Over 400 seeds the offsets on both axes (800

@@ -23,7 +23,15 @@ def test_a_copter_flies_the_model_identified_from_its_autopilot_by_default(autop
         model["lag_s"], model["a_max_m_s2"], model["delay_s"], model["speed_sag_s"])
     assert vp.yaw_rate_max_rad_s == pytest.approx(math.radians(model["yaw_rate_max_deg_s"]))
     assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (model["vel_bias_m_s"], model["vel_bias_tc_s"])
+    assert (vp.vel_bias_jerk_s2, vp.vel_bias_jerk_max_m_s3) == (model["vel_bias_jerk_s2"],
+                                                                model["vel_bias_jerk_max_m_s3"])
     assert vp.pos_delay_s == model["pos_delay_s"]
+
+
+def test_a_bias_given_on_the_command_line_is_one_level_throughout():
+    assert IDENTIFIED_COPTER_MODELS["ardupilot"]["vel_bias_jerk_s2"] > 0.0
+    vp = config("--autopilot", "ardupilot", "--vel-bias-m-s", "0.01").vehicle_params
+    assert (vp.vel_bias_m_s, vp.vel_bias_jerk_s2) == (0.01, 0.0)
 
 
 def test_the_ardupilot_copter_emulates_arducopters_position_controller_unless_a_model_is_given(tmp_path):
@@ -54,6 +62,10 @@ def test_the_vehicle_model_file_sets_the_model_and_options_override_single_value
     f.write_text(f.read_text() + "  vel_bias_m_s: 0.2\n  vel_bias_tc_s: 5\n")
     vp = config("--vehicle-model", str(f)).vehicle_params
     assert (vp.vel_bias_m_s, vp.vel_bias_tc_s) == (0.2, 5.0)
+    assert (vp.vel_bias_jerk_s2, vp.vel_bias_jerk_max_m_s3) == (0.0, 1.0)  # none in the file: one level
+    f.write_text(f.read_text() + "  vel_bias_jerk_s2: 0.03\n  vel_bias_jerk_max_m_s3: 1.5\n")
+    vp = config("--vehicle-model", str(f)).vehicle_params
+    assert (vp.vel_bias_jerk_s2, vp.vel_bias_jerk_max_m_s3) == (0.03, 1.5)
     assert config("--vehicle-model", str(f), "--vel-bias-m-s", "0").vehicle_params.vel_bias_m_s == 0.0
     assert config("--vehicle-model", str(f)).vehicle_params.vel_offset_m_s == 0.0  # none in the file
     f.write_text(f.read_text() + "  vel_offset_m_s: 0.01\n")
