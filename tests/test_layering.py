@@ -129,8 +129,11 @@ def test_vehicle_identification_is_maths_and_its_tlog_reading_an_adapter():
     # The fit (companion.sim.identify) sees arrays only; reading the tlog is companion.io.idlog's
     # job, and the command wires the two.
     fit = imported_modules(ROOT / "companion" / "sim" / "identify.py")
-    assert {n for n in fit if n.startswith("companion")} <= {"companion.guidance.types"}
+    assert {n for n in fit if n.startswith("companion")} <= {"companion.guidance.types", "companion.sim.wander"}
     assert not {n.split(".")[0] for n in fit} & (FORBIDDEN_STDLIB | {"pymavlink", "yaml"})
+    wander = imported_modules(ROOT / "companion" / "sim" / "wander.py")
+    assert not {n for n in wander if n.startswith("companion")}
+    assert not {n.split(".")[0] for n in wander} & (FORBIDDEN_STDLIB | {"pymavlink", "yaml"})
     adapter = imported_modules(ROOT / "companion" / "io" / "idlog.py")
     assert "companion.sim.identify" in adapter and "companion.io.logread" in adapter
     command = imported_modules(ROOT / "companion" / "cli" / "identify.py")
