@@ -59,7 +59,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter, savgol_filter
 
 from companion.guidance.types import VehicleModel
-from companion.sim.wander import JerkWander, fit_jerk_wander, manoeuvre_jerk_m_s3
+from companion.sim.wander import JerkWander, fit_jerk_wander, manoeuvre_jerk_m_s3, usable_pairs
 
 GRID_DT_S = 0.02  # resampling step (50 Hz, the rate the setpoints and positions are streamed at)
 MAX_COMMAND_GAP_S = 0.2  # a setpoint older than this: no command stream, the sample is not used
@@ -353,7 +353,7 @@ def velocity_offset(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarra
     none = (np.zeros(2), np.full(2, math.inf), across, ok, dt)
     if ok.size <= k:
         return none
-    use = _pairs(ok, k)
+    use = usable_pairs(ok, k)
     dx, dy = (x[k:] - x[:-k])[use], (across[k:, 0] - across[:-k, 0])[use]
     if dy.size < 10:
         return none
@@ -432,7 +432,7 @@ def position_delay(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray
     k = max(1, int(round(lag_s / dt)))
     if ok.size <= k:
         return 0.0, math.inf
-    use = _pairs(ok, k)
+    use = usable_pairs(ok, k)
     x = -(v[k:] - v[:-k])[use].ravel()
     y = (e[k:] - e[:-k])[use].ravel()
     sxx = float(x @ x)
@@ -485,7 +485,7 @@ def _fit_bias(segments: list[tuple[np.ndarray, np.ndarray]], dt: float) -> tuple
         for e, ok, span in flights:
             if k < 1 or lag > span / 4.0:
                 continue
-            use = _pairs(ok, k)
+            use = usable_pairs(ok, k)
             d = e[k:][use] - e[:-k][use]
             squares += float(np.sum(d * d))
             count += d.size
@@ -511,13 +511,6 @@ def _fit_bias(segments: list[tuple[np.ndarray, np.ndarray]], dt: float) -> tuple
         x = least_squares(lambda z, w=w: (log_d(z) - log_meas) * w, x, method="lm").x
     sigma, tau = (float(v) for v in np.exp(x))
     return sigma, tau, dict(zip(lags, meas))
-
-
-def _pairs(ok: np.ndarray, k: int) -> np.ndarray:
-    """Where a pair of samples ``k`` apart can be used: both valid and no invalid sample between
-    them (``k < len(ok)``)."""
-    breaks = np.cumsum(~ok)
-    return np.asarray(ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k]), bool)
 
 
 def _offset_terms(offset_ne: np.ndarray, se_ne: np.ndarray) -> np.ndarray:

@@ -112,8 +112,9 @@ def window_variance(level2: np.ndarray, dt_s: float, tc_s: float, k: int) -> np.
     return np.asarray(scale * (past + inside), float)
 
 
-def _usable(ok: np.ndarray, k: int) -> np.ndarray:
-    """Pairs ``k`` apart with every sample between them valid."""
+def usable_pairs(ok: np.ndarray, k: int) -> np.ndarray:
+    """Where a pair of samples ``k`` apart can be used: both valid and no invalid sample between
+    them (``k < len(ok)``)."""
     breaks = np.cumsum(~ok)
     return np.asarray(ok[:-k] & ok[k:] & (breaks[k:] == breaks[:-k]), bool)
 
@@ -128,7 +129,7 @@ def _rows(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]], dt_s: float
         for e, ok, jerk in segments:
             if len(ok) <= k:
                 continue
-            use = _usable(ok, k)
+            use = usable_pairs(ok, k)
             use[np.arange(len(use)) % max(1, k // 2) != 0] = False  # windows half-overlapping
             j2 = np.minimum(jerk, jerk_max) ** 2
             x = np.column_stack([window_variance(np.ones(len(ok)), dt_s, tc_s, k),

@@ -18,7 +18,7 @@ from companion.io.idlog import read_identification_samples
 from companion.sim.identify import (Samples, across_track_velocity_bias, identify, lateral_m_s2, pooled_across_track_bias,
                                    pooled_velocity_offset, position_delay, resample, simulate, velocity_bias,
                                    smoothed, velocity_offset)
-from companion.sim.wander import manoeuvre_jerk_m_s3, window_variance
+from companion.sim.wander import manoeuvre_jerk_m_s3, usable_pairs, window_variance
 from sitl_mock.personality import IDENTIFIED_COPTER_MODELS
 from sitl_mock.vehicle import VehicleModel as MockVehicle
 from sitl_mock.vehicle import VehicleParams
@@ -547,7 +547,7 @@ def test_ardupilot_mock_reports_its_position_as_late_and_drifts_as_the_shared_re
             jerk = np.minimum(manoeuvre_jerk_m_s3(np.gradient(smoothed(f), dt, axis=0), dt),
                               mock["vel_bias_jerk_max_m_s3"])
             level2 = mock["vel_bias_m_s"] ** 2 + (mock["vel_bias_jerk_s2"] * jerk) ** 2
-            use = ok[:-k] & ok[k:] & (np.cumsum(~ok)[k:] == np.cumsum(~ok)[:-k])
+            use = usable_pairs(ok, k)
             squares += float(np.sum(window_variance(level2, dt, mock["vel_bias_tc_s"], k)[use]))
             count += int(use.sum())
         return math.sqrt(squares / count)
