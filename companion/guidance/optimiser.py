@@ -11,8 +11,13 @@ because ``w2 / w1 = rho v_m k^2 (1 + l23) / (1 + l43)`` and the squared curvatur
 path like the paper's sine runs from about 1e-6 to 2e-2 1/m^2: the candidates are spaced
 logarithmically over ``RHO_LOG10_RANGE`` and include both pure ends, ``k2 = 0`` (constant L1)
 and ``k1 = 0`` (the corrector alone), plus the previous optimum and four neighbours within half
-a grid step of it (warm start: as the optimum drifts along the path, these refine it between the
-grid points). All candidates are rolled out in one batch. A ratio maps back to bounded gains: ``k1 = k1_max,
+a grid step of it (warm start: as the optimum drifts along the path, these follow it between the
+grid points). All candidates are rolled out in one batch. A second, smaller batch then refines the
+best finite ratio within one grid step on either side (``REFINE_OFFSETS``): the cost can dip
+sharply between two grid points, and two flights whose states differ by centimetres must not
+choose gains half a decade apart because the grid point on one side of the dip came out a
+little cheaper in one and a little dearer in the other (docs/guidance.md, "The gains refined
+between the grid points"). A ratio maps back to bounded gains: ``k1 = k1_max,
 k2 = rho k1_max`` while that stays within ``k2_max``, else ``k2 = k2_max, k1 = k2_max / rho``.
 
 With ``params.rollout_tau_s > 0`` the rollouts also model a first-order inner loop of that
@@ -41,6 +46,8 @@ STRAIGHT_CURVATURE_1_M = 1e-9
 RHO_LOG10_RANGE = (-1.0, 7.0)
 RHO_COARSE_COUNT = 17  # log-spaced ratios in the first batch (half a decade apart)
 WARM_OFFSETS = (-0.5, -0.25, 0.0, 0.25, 0.5)  # around the previous optimum, in grid steps
+#: The second batch, around the first batch's best finite ratio, in grid steps.
+REFINE_OFFSETS = (-0.75, -0.5, -0.25, -0.125, 0.125, 0.25, 0.5, 0.75)
 ROLLOUT_MAX_STEPS = 20
 
 
@@ -120,9 +127,16 @@ class GainOptimiser:
             lw = math.log10(warm_ratio)
             finite += [10.0 ** (lw + f * self._step_log10) for f in WARM_OFFSETS]
         rhos = np.array([0.0] + finite + [math.inf])
-        cost = self._rollout_cost(rhos, x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window,
-                                  a_achieved_m_s2)
-        best_rho = float(rhos[int(np.argmin(cost))])
+        state = (x_m, y_m, course_rad, speed_m_s, s_proj_m, s_look_m, window, a_achieved_m_s2)
+        cost = self._rollout_cost(rhos, *state)
+        i = int(np.argmin(cost))
+        best_rho, best_cost = float(rhos[i]), float(cost[i])
+        if 0.0 < best_rho < math.inf:
+            near = 10.0 ** (math.log10(best_rho) + self._step_log10 * np.array(REFINE_OFFSETS))
+            near_cost = self._rollout_cost(near, *state)
+            j = int(np.argmin(near_cost))
+            if near_cost[j] < best_cost:
+                best_rho = float(near[j])
         k1, k2 = gains_from_ratio(best_rho, p.k1_max, p.k2_max)
         return k1, k2, window
 
