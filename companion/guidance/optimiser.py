@@ -86,6 +86,7 @@ class GainOptimiser:
         lo, hi = RHO_LOG10_RANGE
         self._coarse_log10 = np.linspace(lo, hi, RHO_COARSE_COUNT)
         self._step_log10 = (hi - lo) / (RHO_COARSE_COUNT - 1)
+        self._refine_log10 = self._step_log10 * np.array(REFINE_OFFSETS)
 
     def window_s(self, s_proj_m: float, speed_m_s: float) -> float:
         """``min(d_limit, R_proj) / V``: the rollout horizon and the time until the next re-optimisation."""
@@ -132,7 +133,7 @@ class GainOptimiser:
         i = int(np.argmin(cost))
         best_rho, best_cost = float(rhos[i]), float(cost[i])
         if 0.0 < best_rho < math.inf:
-            near = 10.0 ** (math.log10(best_rho) + self._step_log10 * np.array(REFINE_OFFSETS))
+            near = 10.0 ** (math.log10(best_rho) + self._refine_log10)
             near_cost = self._rollout_cost(near, *state)
             j = int(np.argmin(near_cost))
             if near_cost[j] < best_cost:
