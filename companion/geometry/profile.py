@@ -58,6 +58,9 @@ class ProfileLimits:
     vert_accel_max_m_s2 : largest vertical acceleration of the profile.
     along_accel_max_m_s2 : largest along-track acceleration (speed changes).
     alt_gain_1_s : gain of the correction on altitude error, added to the feed-forward climb.
+    turn_accel_share : share of the vehicle's horizontal acceleration limit the path's own turns
+        may ask (``V^2 kappa``) once that limit is known; the speed is lowered where a turn asks
+        more (:func:`turn_limited_speed`). In [0, 1]; 0: speeds as given.
     """
 
     climb_max_m_s: float = 2.0
@@ -65,10 +68,13 @@ class ProfileLimits:
     vert_accel_max_m_s2: float = 1.0
     along_accel_max_m_s2: float = 1.0
     alt_gain_1_s: float = 1.0
+    turn_accel_share: float = 0.8
 
     def __post_init__(self) -> None:
         require_positive_finite(self, ("climb_max_m_s", "sink_max_m_s", "vert_accel_max_m_s2",
                                        "along_accel_max_m_s2", "alt_gain_1_s"))
+        if not (0.0 <= self.turn_accel_share <= 1.0):
+            raise ValueError(f"turn_accel_share: expected a number in [0, 1], got {self.turn_accel_share!r}")
 
 
 class PathProfile:
@@ -208,6 +214,50 @@ def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: floa
         v2 = out[-1]
     limited: np.ndarray = np.sqrt(out)
     return limited
+
+
+def turn_limited_speed(speed_m_s: np.ndarray, curvature_1_m: np.ndarray, ds_m: float, lateral_accel_m_s2: float,
+                       along_accel_m_s2: float, closed: bool) -> np.ndarray:
+    """The speeds ``speed_m_s`` (on a uniform grid of step ``ds_m``) lowered where the path's own
+    turn would ask more than ``lateral_accel_m_s2``, with the speed changes flown at
+    ``along_accel_m_s2``.
+
+    In a turn of curvature ``kappa`` at speed ``V`` the path alone asks ``V^2 |kappa|`` of lateral
+    acceleration. So ``V^2`` is capped at ``lateral_accel / |kappa|``; then a backward pass makes
+    the vehicle slow down *before* each cap (``V^2`` may fall by at most ``2 a_long ds`` per step
+    forward: braking at ``a_long``) and a forward pass makes it speed up again after it (rising by
+    at most ``2 a_long ds``). Both passes only lower values, and the forward pass keeps what the
+    backward one ensured, so the result is never faster than asked, never faster than the cap, and
+    changes at ``a_long`` or less everywhere. A closed path is passed twice round (its joint is
+    then settled). Where the input already keeps those limits it is returned unchanged.
+
+    >>> ds = 0.5; s = np.arange(0.0, 100.0 + ds, ds)
+    >>> kappa = np.where((s >= 60) & (s <= 70), 0.2, 0.0)  # a 5 m radius arc at 60..70 m
+    >>> v = turn_limited_speed(np.full(s.size, 5.0), kappa, ds, 2.0, 1.0, closed=False)
+    >>> round(float(v[s == 65][0] ** 2 * 0.2), 6)          # V^2 kappa = 2 m/s^2 in the arc
+    2.0
+    >>> float(s[np.argmax(v < 5.0)])       # braking starts (25 - 10) / (2 * 1) = 7.5 m before it
+    53.0
+    """
+    v2 = np.asarray(speed_m_s, dtype=float) ** 2
+    k = np.abs(np.asarray(curvature_1_m, dtype=float))
+    cap = np.full_like(v2, np.inf)
+    np.divide(lateral_accel_m_s2, k, out=cap, where=k > 0.0)
+    if np.all(v2 <= cap):
+        unchanged: np.ndarray = np.sqrt(v2)
+        return unchanged
+    limited = np.minimum(v2, cap).tolist()
+    step = 2.0 * along_accel_m_s2 * ds_m
+    n = len(limited) - 1 if closed else len(limited)  # a closed table's last node is its first
+    for order in (range(n - 1, -1, -1), range(n)):  # brake before the caps, then speed up after
+        prev = math.inf
+        for _ in range(2 if closed else 1):
+            for i in order:
+                prev = limited[i] = min(limited[i], prev + step)
+    if closed:
+        limited[-1] = limited[0]
+    out: np.ndarray = np.sqrt(np.asarray(limited))
+    return out
 
 
 def _clip_pass(target: list[float], up: list[float], down: list[float], start: float) -> list[float]:

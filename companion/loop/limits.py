@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from companion.mission.model import Mission
+from companion.mission.turns import slowed_for_turns
 
 G_M_S2 = 9.80665
 #: The parameters read per autopilot (``AutopilotInfo.kind``).
@@ -76,8 +77,17 @@ def mission_with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[
     well: ``predictive``'s model monitor learns the vehicle's lag and limit in flight
     (docs/guidance.md) instead of planning for an ideal inner loop; the other methods do not plan
     and ignore it. (Only then: the PARAM_VALUE answers in the tlog are what tells replay to do
-    the same.)
+    the same.) Whatever limit is used, the path is flown slower where its turns ask more of it
+    than ``along_track.turn_accel_share`` allows (:func:`companion.mission.turns.slowed_for_turns`).
     """
+    mission, line = _with_limit(mission, limit)
+    a_max = mission.vehicle.a_max_m_s2 if mission.vehicle is not None else mission.guidance.a_max_m_s2
+    mission, turns = slowed_for_turns(mission, a_max)
+    return mission, line if turns is None else f"{line}; {turns}"
+
+
+def _with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[Mission, str]:
+    """:func:`mission_with_limit` before the turns are slowed for."""
     g = mission.guidance
     if mission.vehicle is not None:
         read = f" (the autopilot's {limit.source} not used)" if limit is not None else ""

@@ -322,6 +322,7 @@ class FlightRunner:
         self._check_start_distance(s)
         if self._guidance is None:  # the autopilot's own acceleration limit (companion.loop.limits)
             self.mission = apply_autopilot_limits(s.link, self.mission, s.event, s.idle)
+            config = self._tick_config(s)  # again: the limit may slow the path's turns (a new profile)
         guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
         profile = profile_for(s.link.info, s)
         clock = self._clock(s)

@@ -460,6 +460,7 @@ class _Builder(_Checks):
             warnings=tuple(self.warnings),
             profile=profile,
             vehicle=self.build_vehicle(),
+            profile_limits=self.build_profile_limits() or ProfileLimits(),
         )
 
     def build_vehicle(self) -> VehicleModel | None:
@@ -559,13 +560,9 @@ class _Builder(_Checks):
             return None  # reported by the schema
         if isinstance(alt, float) and isinstance(speed, float):
             return None
-        vert = self.doc.get("vertical") or {}
-        along = self.doc.get("along_track") or {}
-        values = (vert.get("climb_max_m_s"), vert.get("sink_max_m_s"), vert.get("accel_max_m_s2"),
-                  along.get("accel_max_m_s2"), vert.get("alt_gain_1_s"))
-        if any(v is None for v in values):
+        limits = self.build_profile_limits()
+        if limits is None:
             return None  # reported by the schema
-        limits = ProfileLimits(*values)
         alt_target = self.profile_target(alt, "altitude_m", path, step=False, high=10000.0)
         speed_target = self.profile_target(speed, "speed_m_s", path, step=True, high=100.0)
         if alt_target is None or speed_target is None:
@@ -575,6 +572,16 @@ class _Builder(_Checks):
         if isinstance(alt, list) and self.knots.s_m is not None:
             self.warn_unreached_heights(profile, alt)
         return profile
+
+    def build_profile_limits(self) -> ProfileLimits | None:
+        """The ``vertical:`` and ``along_track:`` limits; None when the schema reported a problem."""
+        vert = self.doc.get("vertical") or {}
+        along = self.doc.get("along_track") or {}
+        values = (vert.get("climb_max_m_s"), vert.get("sink_max_m_s"), vert.get("accel_max_m_s2"),
+                  along.get("accel_max_m_s2"), vert.get("alt_gain_1_s"), along.get("turn_accel_share"))
+        if any(v is None for v in values):
+            return None
+        return ProfileLimits(*values)
 
     def profile_target(self, value, key: str, path: Path, step: bool, high: float):
         """A number, or a function of the arc-length grid; None after reporting a problem."""

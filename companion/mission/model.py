@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field
 
 from companion.geometry.paths import Path
-from companion.geometry.profile import PathProfile
+from companion.geometry.profile import PathProfile, ProfileLimits
 from companion.guidance.types import GuidanceParams, VehicleModel
 
 ON_FINISH = ("hold", "loiter", "rtl", "land")
@@ -70,6 +70,10 @@ class Mission:
         (:class:`companion.geometry.profile.PathProfile`), or None when both are one number.
         ``altitude_m`` and ``speed_m_s`` are then the profile's values at the path start.
     vehicle : the ``vehicle:`` block (:class:`companion.guidance.types.VehicleModel`), or None.
+    profile_limits : the ``vertical:`` and ``along_track:`` limits
+        (:class:`companion.geometry.profile.ProfileLimits`): those ``profile`` was smoothed to, and
+        those a flight slows down for turns with (:func:`companion.mission.turns.slowed_for_turns`)
+        even when the mission is flat.
     """
 
     name: str
@@ -86,6 +90,7 @@ class Mission:
     warnings: tuple[str, ...] = ()
     profile: PathProfile | None = None
     vehicle: VehicleModel | None = None
+    profile_limits: ProfileLimits = field(default_factory=ProfileLimits)
 
     def __post_init__(self) -> None:
         if self.on_finish not in ON_FINISH:

@@ -317,9 +317,15 @@ MISSION = Object(
                     "accel_max_m_s2": Field(Number(exclusive_minimum=0, maximum=50), "largest "
                                             "along-track acceleration of a speed change",
                                             default=1.0),
+                    "turn_accel_share": Field(Number(minimum=0, maximum=1), "share of the "
+                                              "vehicle's acceleration limit the path's own turns "
+                                              "may ask (V^2 kappa) in a flight: slower where a "
+                                              "turn asks more (0: the speeds as given)",
+                                              default=0.8),
                 },
             ),
-            "along-track limit of the vehicle, used to smooth the speed profile", default={}),
+            "along-track limits of the vehicle, used to smooth the speed profile and to slow "
+            "down for turns", default={}),
         "path": Field(PATH, "the reference path", required=True),
         "guidance": Field(
             Object(

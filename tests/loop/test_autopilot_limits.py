@@ -88,6 +88,8 @@ def test_a_flight_on_the_mock_reads_wpnav_accel_flies_within_it_and_replays(tmp_
         mock.wait(timeout=10)
     assert fly.returncode == 0, fly.stderr
     assert "acceleration limit 2.5 m/s^2 from the autopilot's WPNAV_ACCEL 250 cm/s^2" in fly.stderr
+    # and it slows for the circle: V = sqrt(0.8 * 2.5 * 6) on the whole of it
+    assert f"slower in the path's turns: down to {math.sqrt(12.0):.2f} m/s over 100 % of the path" in fly.stderr
     assert json.loads(fly.stdout)["a_max_m_s2"] <= 2.5 + 1e-9
     assert main(["replay", str(tlog), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["within_tolerance"] is True

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from companion.errors import MissionError
+from companion.geometry.profile import ProfileLimits
 from companion.guidance.types import GuidanceParams
 from companion.mission import parse_mission
 from companion.mission.schema import MISSION, Object, Tagged, json_schema, json_schema_text
@@ -53,11 +54,22 @@ def test_guidance_defaults_agree_with_guidance_params():
     assert m["trigger"].default == defaults.midcourse_trigger
 
 
+def test_profile_limit_defaults_agree_with_profile_limits():
+    v = MISSION.fields["vertical"].spec.fields
+    a = MISSION.fields["along_track"].spec.fields
+    limits = ProfileLimits()
+    assert (v["climb_max_m_s"].default, v["sink_max_m_s"].default, v["accel_max_m_s2"].default,
+            v["alt_gain_1_s"].default) == (limits.climb_max_m_s, limits.sink_max_m_s,
+                                          limits.vert_accel_max_m_s2, limits.alt_gain_1_s)
+    assert (a["accel_max_m_s2"].default, a["turn_accel_share"].default) == (limits.along_accel_max_m_s2,
+                                                                           limits.turn_accel_share)
+
+
 def test_every_key_name_carries_its_unit_or_is_unitless_by_nature():
     unitless = {"version", "name", "frame", "origin", "path", "guidance", "vehicle", "midcourse", "on_finish",
                 "start", "type", "y_of_x", "x_of_s", "y_of_s", "s_range", "closed", "method",
                 "k1_max", "k2_max", "d_limit_factor", "trigger", "segments", "vertical",
-                "along_track", "tail_share"}
+                "along_track", "tail_share", "turn_accel_share"}
     suffixes = ("_m", "_m_s", "_m_s2", "_m_s3", "_deg", "_hz", "_s", "_s2", "_s4")
 
     def walk(spec, where=""):
