@@ -242,7 +242,7 @@ def turn_limited_speed(speed_m_s: np.ndarray, curvature_1_m: np.ndarray, ds_m: f
     v2 = np.asarray(speed_m_s, dtype=float) ** 2
     k = np.abs(np.asarray(curvature_1_m, dtype=float))
     cap = np.full_like(v2, np.inf)
-    np.divide(lateral_accel_m_s2, k, out=cap, where=k > 0.0)
+    np.divide(lateral_accel_m_s2, k, out=cap, where=k > 1e-9)  # straighter than a 1e9 m radius: no cap
     if np.all(v2 <= cap):
         unchanged: np.ndarray = np.sqrt(v2)
         return unchanged

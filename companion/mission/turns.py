@@ -54,7 +54,7 @@ def slowed_for_turns(mission: Mission, a_max_m_s2: float) -> tuple[Mission, str 
     new = PathProfile(s, alt, slowed, path.closed, limits)
     v0 = new.speed_m_s(0.0)
     changed = slowed < speed
-    line = (f"slower in the path's turns: down to {float(slowed.min()):.2f} m/s over "
+    line = (f"slower in the path's turns: down to {float(slowed[changed].min()):.2f} m/s over "
             f"{100.0 * float(np.mean(changed)):.0f} % of the path, so that V^2 kappa <= {share:g} x "
             f"{a_max_m_s2:.3g} m/s^2 (along_track.turn_accel_share)")
     guidance = dataclasses.replace(mission.guidance, speed_m_s=v0)
