@@ -151,6 +151,7 @@ def _figures(mission) -> dict:
         "radius_min_m": round(1.0 / k_max, 4) if k_max > 0 else None,
         "radius_min_at_s_m": round(float(path.s_table_m[i]), 3),
         "a_path_max_m_s2": round(mission.speed_m_s ** 2 * k_max, 4),
+        "turn_accel_share": mission.profile_limits.turn_accel_share,
         "initiation_circles": [{"centre_xy_m": [round(c, 4) for c in centre],
                                 "radius_m": mission.guidance.circle_radius_m}
                                for centre in _initiation_circles(mission)],
@@ -179,6 +180,9 @@ def _figures(mission) -> dict:
         }
         out["a_path_max_m_s2"] = round(float(np.max(np.interp(path.s_table_m, p.s_m, p.speed_m_s_table) ** 2
                                                     * np.abs(k))), 4)
+    share = mission.profile_limits.turn_accel_share
+    # a flight on a vehicle whose acceleration limit is below this is slower in the turns (docs/missions.md)
+    out["turns_slowed_below_a_max_m_s2"] = round(out["a_path_max_m_s2"] / share, 4) if share > 0 else None
     return out
 
 
@@ -204,6 +208,10 @@ def run_show(args) -> int:
     print(f"  tightest radius: {radius if radius is not None else math.inf:.2f} m at s = "
           f"{figures['radius_min_at_s_m']:.1f} m (V^2 k = {figures['a_path_max_m_s2']:.2f} m/s^2 at "
           + ("the local speed V(s), largest along the path)" if mission.profile is not None else f"V = {mission.speed_m_s:g} m/s)"))
+    below = figures["turns_slowed_below_a_max_m_s2"]
+    if below is not None:
+        print(f"  in flight: slower in the turns on a vehicle whose acceleration limit is below {below:.2f} m/s^2 "
+              f"(along_track.turn_accel_share {figures['turn_accel_share']:g})")
     print(f"  guidance: {figures['method']}, L1 = {figures['l1_m']:g} m, "
           f"{mission.guidance.rate_hz:g} Hz; altitude {mission.altitude_m:g} m")
     if "profile" in figures:

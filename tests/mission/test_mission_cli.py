@@ -131,3 +131,16 @@ def test_import_to_stdout_prints_only_the_yaml(tmp_path, capsys):
     doc.write_text(captured.out)
     assert main(["mission", "check", str(doc)]) == 0  # stdout alone is a valid mission
     assert "<stdout>: wrote" in captured.err
+
+
+def test_show_says_below_which_vehicle_limit_a_flight_slows_in_the_turns(tmp_path, capsys):
+    # A 20 m circle at 6 m/s asks V^2 / R = 1.8 m/s^2: slowed on a vehicle below 1.8 / 0.5 = 3.6 m/s^2.
+    text = ("name: circle\nspeed_m_s: 6.0\nalong_track: {turn_accel_share: 0.5}\n"
+            "path: {type: parametric, x_of_s: '20*cos(s)', y_of_s: '20*sin(s)', s_range: [0, 6.283185307179586], "
+            "closed: true}\n")
+    assert main(["mission", "show", "--json", str(write(tmp_path, "c.yaml", text))]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["a_path_max_m_s2"] == pytest.approx(1.8, rel=1e-3)
+    assert doc["turns_slowed_below_a_max_m_s2"] == pytest.approx(3.6, rel=1e-3)
+    assert main(["mission", "show", str(write(tmp_path, "c.yaml", text))]) == 0
+    assert "slower in the turns on a vehicle whose acceleration limit is below 3.60 m/s^2" in capsys.readouterr().out
