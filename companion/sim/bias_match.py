@@ -74,6 +74,15 @@ def _structure(rests: list[tuple[np.ndarray, np.ndarray, float]]) -> np.ndarray:
     return np.array(out)
 
 
+def measured_structure(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN_SPEED_M_S) -> np.ndarray:
+    """How the flights' velocity bias is measured here: the RMS change of the drift across the
+    track left after :func:`~companion.sim.identify.velocity_offset` takes out the offset and the
+    turn, at each of :data:`MATCH_LAGS_S`, every usable pair of every flight pooled (m)."""
+    if any(f.pos_ne_m is None for f in flights):
+        raise ValueError("bias structure: a flight has no positions")
+    return _structure([_rest(f, np.asarray(f.pos_ne_m, float), min_speed_m_s) for f in flights])
+
+
 def _integral_of_velocity(f: Samples) -> np.ndarray:
     """The track the reported velocity alone gives (trapezoids over the autopilot's clock, as
     :func:`~companion.sim.identify.velocity_offset` integrates it)."""
@@ -111,9 +120,7 @@ def match_bias(flights: list[Samples], taus_s: tuple[float, ...] = MATCH_TAUS_S,
     ValueError when there are no flights or one has no positions."""
     if not flights:
         raise ValueError("match bias: expected at least one flight, got none")
-    if any(f.pos_ne_m is None for f in flights):
-        raise ValueError("match bias: a flight has no positions")
-    measured = _structure([_rest(f, np.asarray(f.pos_ne_m, float), min_speed_m_s) for f in flights])
+    measured = measured_structure(flights, min_speed_m_s)
     good = np.isfinite(measured) & (measured > 0)
     if good.sum() < 2:
         raise ValueError("match bias: the flights hold too few usable pairs of samples")
