@@ -297,12 +297,14 @@ class FlightRunner:
     def _health_monitor(self, config: TickConfig) -> HealthMonitor:
         """The flight-health checks of this flight: the cross-track bound widened, while the vehicle
         turns onto the path, by the initiation circle, or for a fixed wing by its tightest turn at
-        the bank limit if that is wider."""
+        the bank limit if that is wider. The progress expected is that of the slowest speed the
+        mission asks anywhere (its profile's, e.g. slowed for a tight turn)."""
         v = self.mission.speed_m_s
+        slowest = v if self.mission.profile is None else min(v, float(self.mission.profile.speed_m_s_table.min()))
         a_max = (G_M_S2 * math.tan(math.radians(self.opt.max_bank_deg))
                  if config.output == "attitude" else math.inf)
         allowance = turn_allowance_m(self.mission.guidance.circle_radius_m, v, a_max)
-        return HealthMonitor(self.opt.health, v, clock=self.opt.clock, turn_allowance_m=allowance)
+        return HealthMonitor(self.opt.health, slowest, clock=self.opt.clock, turn_allowance_m=allowance)
 
     def _on_finish_action(self) -> str:
         return self.opt.on_finish or self.mission.on_finish

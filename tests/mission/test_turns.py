@@ -73,3 +73,16 @@ def test_an_altitude_profile_keeps_its_heights_and_the_speed_is_lowered_in_its_t
     # a half circle of 8 m: V = sqrt(0.8 * 2.5 * 8) = 4 m/s in the middle of the turn
     assert used.profile.speed_m_s(used.profile.length_m / 2) == pytest.approx(4.0, rel=1e-6)
     assert "down to 4.00 m/s" in line
+
+
+
+def test_a_flight_slowed_in_its_turns_expects_the_progress_of_its_slowest_speed():
+    # The "not moving" check expects a share of the mission speed; slowed to 3.70 m/s in the
+    # sine's tightest turn, the flight must not be held to its 5 m/s.
+    from companion.loop.runner import FlightRunner, FlyOptions
+    from companion.replay.replay import tick_config_for
+
+    used, _ = mission_with_limit(load_mission(str(MISSIONS / "paper_sine.yaml")), WPNAV)
+    runner = FlightRunner(used, FlyOptions(connect="udpin:127.0.0.1:14999", rate_hz=50.0))
+    health = runner._health_monitor(tick_config_for(used, 50.0))
+    assert health.speed_m_s == pytest.approx(math.sqrt(2.0 / sine_curvature_max()), rel=2e-3)
