@@ -217,7 +217,7 @@ def speed_table(s_grid: np.ndarray, target_m_s: np.ndarray, accel_max_m_s2: floa
 
 
 def turn_limited_speed(speed_m_s: np.ndarray, curvature_1_m: np.ndarray, ds_m: float, lateral_accel_m_s2: float,
-                       along_accel_m_s2: float, closed: bool) -> np.ndarray:
+                       along_accel_m_s2: float, closed: bool, min_speed_m_s: float = 0.0) -> np.ndarray:
     """The speeds ``speed_m_s`` (on a uniform grid of step ``ds_m``) lowered where the path's own
     turn would ask more than ``lateral_accel_m_s2``, with the speed changes flown at
     ``along_accel_m_s2``.
@@ -229,7 +229,9 @@ def turn_limited_speed(speed_m_s: np.ndarray, curvature_1_m: np.ndarray, ds_m: f
     at most ``2 a_long ds``). Both passes only lower values, and the forward pass keeps what the
     backward one ensured, so the result is never faster than asked, never faster than the cap, and
     changes at ``a_long`` or less everywhere. A closed path is passed twice round (its joint is
-    then settled). Where the input already keeps those limits it is returned unchanged.
+    then settled). Where the input already keeps those limits it is returned unchanged. The cap
+    never goes below ``min_speed_m_s`` (a turn tighter than that speed allows is flown at it; a
+    slower speed asked stays as asked).
 
     >>> ds = 0.5; s = np.arange(0.0, 100.0 + ds, ds)
     >>> kappa = np.where((s >= 60) & (s <= 70), 0.2, 0.0)  # a 5 m radius arc at 60..70 m
@@ -243,6 +245,7 @@ def turn_limited_speed(speed_m_s: np.ndarray, curvature_1_m: np.ndarray, ds_m: f
     k = np.abs(np.asarray(curvature_1_m, dtype=float))
     cap = np.full_like(v2, np.inf)
     np.divide(lateral_accel_m_s2, k, out=cap, where=k > 1e-9)  # straighter than a 1e9 m radius: no cap
+    cap = np.maximum(cap, min_speed_m_s * min_speed_m_s)
     if np.all(v2 <= cap):
         unchanged: np.ndarray = np.sqrt(v2)
         return unchanged

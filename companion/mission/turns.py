@@ -26,6 +26,9 @@ import numpy as np
 from companion.geometry.profile import PathProfile, grid, turn_limited_speed
 from companion.mission.model import Mission
 
+#: The slowest a turn slows a flight to (a turn tighter than this speed allows is flown at it).
+TURN_SPEED_MIN_M_S = 1.0
+
 
 def slowed_for_turns(mission: Mission, a_max_m_s2: float) -> tuple[Mission, str | None]:
     """``mission`` flown within ``turn_accel_share * a_max_m_s2`` in its path's turns, and the log
@@ -47,7 +50,7 @@ def slowed_for_turns(mission: Mission, a_max_m_s2: float) -> tuple[Mission, str 
     speed = profile.speed_m_s_table if profile is not None else np.full(s.size, mission.speed_m_s)
     kappa = path.curvature_array(s)
     slowed = turn_limited_speed(speed, kappa, float(s[1] - s[0]), lateral, limits.along_accel_max_m_s2,
-                                path.closed)
+                                path.closed, TURN_SPEED_MIN_M_S)
     if np.array_equal(slowed, speed):
         return mission, None
     alt = profile.alt_m if profile is not None else np.full(s.size, mission.altitude_m)
@@ -57,5 +60,8 @@ def slowed_for_turns(mission: Mission, a_max_m_s2: float) -> tuple[Mission, str 
     line = (f"slower in the path's turns: down to {float(slowed[changed].min()):.2f} m/s over "
             f"{100.0 * float(np.mean(changed)):.0f} % of the path, so that V^2 kappa <= {share:g} x "
             f"{a_max_m_s2:.3g} m/s^2 (along_track.turn_accel_share)")
+    if np.any(slowed * slowed * np.abs(kappa) > lateral * (1.0 + 1e-9)):
+        line += (f"; tighter than that at {TURN_SPEED_MIN_M_S:g} m/s in places, flown at "
+                 f"{TURN_SPEED_MIN_M_S:g} m/s there")
     guidance = dataclasses.replace(mission.guidance, speed_m_s=v0)
     return dataclasses.replace(mission, profile=new, speed_m_s=v0, guidance=guidance), line

@@ -74,3 +74,14 @@ def test_never_faster_than_asked_or_the_cap_and_changes_at_a_long_at_most(seed, 
     assert np.all(steps <= 2.0 * along * ds * (1 + 1e-9))
     if closed:
         assert v[-1] == v[0]
+
+
+def test_a_turn_too_tight_for_the_floor_speed_is_flown_at_it_and_slower_asks_stay():
+    s = np.arange(0.0, 60.0 + DS / 2, DS)
+    kappa = np.where((s >= 30.0) & (s <= 31.0), 50.0, 0.0)  # a 2 cm radius: 2 m/s^2 allows 0.2 m/s
+    asked = np.where(s < 10.0, 0.5, 5.0)                     # 0.5 m/s asked over the first 10 m
+    v = turn_limited_speed(asked, kappa, DS, 2.0, 1.0, closed=False, min_speed_m_s=1.0)
+    assert np.all(v[(s >= 30.0) & (s <= 31.0)] == 1.0)
+    assert np.all(v[s < 10.0 - DS] == 0.5)
+    # from 0.5 m/s it speeds up at 1 m/s^2: past 1 m/s after (1 - 0.25) / 2 = 0.375 m
+    assert v.min() == 0.5 and np.all(v[s >= 10.5] >= 1.0)

@@ -86,3 +86,13 @@ def test_a_flight_slowed_in_its_turns_expects_the_progress_of_its_slowest_speed(
     runner = FlightRunner(used, FlyOptions(connect="udpin:127.0.0.1:14999", rate_hz=50.0))
     health = runner._health_monitor(tick_config_for(used, 50.0))
     assert health.speed_m_s == pytest.approx(math.sqrt(2.0 / sine_curvature_max()), rel=2e-3)
+
+
+def test_a_turn_too_tight_even_for_1_m_s_is_flown_at_1_m_s_and_the_log_says_so(tmp_path):
+    # A 0.3 m circle: 0.8 x 2.5 m/s^2 allows sqrt(2 * 0.3) = 0.77 m/s, below the 1 m/s floor.
+    f = tmp_path / "tiny.yaml"
+    f.write_text("name: tiny\nspeed_m_s: 3.0\npath: {type: parametric, x_of_s: '0.3*cos(s)', "
+                 "y_of_s: '0.3*sin(s)', s_range: [0, 6.283185307179586], closed: true}\nguidance: {l1_m: 1.0}\n")
+    used, line = mission_with_limit(load_mission(str(f)), WPNAV)
+    assert np.allclose(used.profile.speed_m_s_table, 1.0)
+    assert "down to 1.00 m/s" in line and "flown at 1 m/s there" in line
