@@ -24,9 +24,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
 
-from companion.sim.identify import ACROSS_MIN_SPEED_M_S, Samples, velocity_offset
+from companion.sim.identify import (ACROSS_MIN_SPEED_M_S, Samples, gauss_markov_drift, velocity_integral,
+                                   velocity_offset)
 from companion.sim.wander import usable_pairs
 
 #: Lags (s) at which the drift left after the offset and turn is compared.
@@ -83,33 +83,19 @@ def measured_structure(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN
     return _structure([_rest(f, np.asarray(f.pos_ne_m, float), min_speed_m_s) for f in flights])
 
 
-def _integral_of_velocity(f: Samples) -> np.ndarray:
-    """The track the reported velocity alone gives (trapezoids over the autopilot's clock, as
-    :func:`~companion.sim.identify.velocity_offset` integrates it)."""
-    v = np.asarray(f.vel_ne_m_s, float)
-    t = np.asarray(f.t_autopilot_s if f.t_autopilot_s is not None else f.t_s, float)
-    step = np.zeros_like(v)
-    step[1:] = 0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None]
-    return np.cumsum(step, axis=0)
-
-
 def expected_structure(flights: list[Samples], tau_s: float, runs: int = 20, seed: int = 0,
                        min_speed_m_s: float = ACROSS_MIN_SPEED_M_S) -> np.ndarray:
     """The structure a unit bias (``sigma`` = 1 m/s) of correlation time ``tau_s`` is expected to
     show on these flights' tracks, measured as :func:`match_bias` measures the flights (RMS over
     ``runs`` seeded draws)."""
     rng = np.random.default_rng(seed)
-    tracks = [_integral_of_velocity(f) for f in flights]
+    tracks = [velocity_integral(f.t_s, f.vel_ne_m_s, f.t_autopilot_s) for f in flights]
     squares = np.zeros(len(MATCH_LAGS_S))
     for _ in range(runs):
         rests = []
         for f, track in zip(flights, tracks):
-            dt = float(f.t_s[1] - f.t_s[0])
-            phi = math.exp(-dt / tau_s)
-            kicks = rng.standard_normal(track.shape) * math.sqrt(1.0 - phi * phi)
-            kicks[0] = rng.standard_normal(2)  # started in the stationary distribution
-            bias = lfilter([1.0], [1.0, -phi], kicks, axis=0)
-            rests.append(_rest(f, track + np.cumsum(bias, axis=0) * dt, min_speed_m_s))
+            drift = gauss_markov_drift(rng, track.shape, 1.0, tau_s, float(f.t_s[1] - f.t_s[0]))
+            rests.append(_rest(f, track + drift, min_speed_m_s))
         squares += _structure(rests) ** 2
     return np.sqrt(squares / runs)
 

@@ -391,14 +391,32 @@ def _drift_ne(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, val
     t = np.asarray(t_s, float)
     dt = float(t[1] - t[0])
     ok = np.asarray(valid, bool)
-    v = np.asarray(vel_ne_m_s, float)
-    step = np.zeros_like(v)
-    step_s = dt if t_autopilot_s is None else np.diff(np.asarray(t_autopilot_s, float))[:, None]
-    step[1:] = 0.5 * (v[1:] + v[:-1]) * step_s
-    integral = np.cumsum(step, axis=0)
+    integral = velocity_integral(t, vel_ne_m_s, t_autopilot_s)
     if pos_delay_s != 0.0:
         integral = np.column_stack([np.interp(t - pos_delay_s, t, integral[:, i]) for i in range(2)])
     return np.asarray(pos_ne_m, float) - integral, ok, dt
+
+
+def velocity_integral(t_s: np.ndarray, vel_ne_m_s: np.ndarray, t_autopilot_s: np.ndarray | None = None) -> np.ndarray:
+    """The track the reported velocity alone gives, from 0 at the first sample (trapezoids over
+    the autopilot's clock ``t_autopilot_s`` when given, else over the grid's step)."""
+    v = np.asarray(vel_ne_m_s, float)
+    step = np.zeros_like(v)
+    t = np.asarray(t_s, float)
+    step_s = float(t[1] - t[0]) if t_autopilot_s is None else np.diff(np.asarray(t_autopilot_s, float))[:, None]
+    step[1:] = 0.5 * (v[1:] + v[:-1]) * step_s
+    return np.cumsum(step, axis=0)
+
+
+def gauss_markov_drift(rng: np.random.Generator, shape: tuple[int, int], sigma: float, tau_s: float,
+                       dt_s: float) -> np.ndarray:
+    """The drift (m) of a first-order Gauss-Markov bias (``sigma`` m/s, ``tau_s``, started in its
+    stationary distribution) on each of ``shape[1]`` axes over ``shape[0]`` samples ``dt_s``
+    apart: the bias summed times ``dt_s``."""
+    phi = math.exp(-dt_s / tau_s)
+    kicks = rng.standard_normal(shape) * sigma * math.sqrt(1.0 - phi * phi)
+    kicks[0] = rng.standard_normal(shape[1]) * sigma
+    return np.asarray(np.cumsum(lfilter([1.0], [1.0, -phi], kicks, axis=0), axis=0) * dt_s, float)
 
 
 def position_delay(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
@@ -455,14 +473,9 @@ def _fit_bias_with_errors(segments: list[tuple[np.ndarray, np.ndarray]], dt: flo
     # Parametric bootstrap: the same fit on drifts drawn from the fitted process over the same
     # samples (an AR(1) bias on each axis, integrated); the spread of those fits is the error.
     rng = np.random.default_rng(BIAS_BOOTSTRAP_SEED)
-    phi = math.exp(-dt / tau)
     estimates = []
     for _ in range(BIAS_BOOTSTRAP_RUNS):
-        drawn = []
-        for e, ok in segments:
-            kicks = rng.standard_normal(e.shape) * sigma * math.sqrt(1.0 - phi * phi)
-            kicks[0] = rng.standard_normal(e.shape[1]) * sigma  # started in the stationary distribution
-            drawn.append((np.cumsum(lfilter([1.0], [1.0, -phi], kicks, axis=0), axis=0) * dt, ok))
+        drawn = [(gauss_markov_drift(rng, e.shape, sigma, tau, dt), ok) for e, ok in segments]
         part = _fit_bias(drawn, dt)
         if part is not None:
             estimates.append(part[:2])
