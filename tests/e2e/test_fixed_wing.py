@@ -35,7 +35,7 @@ def test_plane_flies_the_path_with_bank_angle_setpoints(tmp_path, start_yaw_deg)
     m = parse_mission(MISSION, "plane.yaml")
     port = free_udp_port()
     mock = MockProcess(["--autopilot", "px4", "--vehicle", "plane", "--link", f"udpout:127.0.0.1:{port}",
-                        "--speedup", "5", "--start-ned=-10,-20", "--start-alt-m", "50",
+                        "--speedup", "3", "--start-ned=-10,-20", "--start-alt-m", "50",
                         f"--start-yaw-deg={start_yaw_deg}",
                         "--start-airborne", "--quiet", "--offboard-loss-s", "5"])
     mock.start(timeout_s=60.0)
