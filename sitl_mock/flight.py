@@ -592,7 +592,8 @@ class FlightLogic:
                     pos_ne, vel_ne = (est[0], est[1]), (s.vel_ned_m_s[0], s.vel_ned_m_s[1])
                     if not posctl_flying:
                         self.posctl.reset(pos_ne, vel_ne, (s.acc_ned_m_s2[0], s.acc_ned_m_s2[1]))
-                    acc_ne = self.posctl.update(dt_s, (vel[0], vel[1]), pos_ne, vel_ne)
+                    acc_ne = self.posctl.update(dt_s, (vel[0], vel[1]), pos_ne, vel_ne, (acc_ff[0], acc_ff[1]),
+                                                sp.received_s)
                     thrust_ne = self.posctl.thrust_ne_m_s2
                     self._posctl_flying = True
         elif behaviour in ("hold", "manual", "mission"):

@@ -4,10 +4,13 @@ A real ArduCopter does not pass a velocity target straight to its velocity loop.
 velocity targets (``ModeGuided::velaccel_control_run``, ArduPilot master) it
 
 1. shapes the target into a kinematic trajectory (desired position, velocity, acceleration) whose
-   acceleration is at most ``WPNAV_ACCEL`` and changes at most at ``PSC_JERK_XY``
-   (``shape_vel_accel_xy`` in ``libraries/AP_Math/control.cpp``; the correction toward the target
-   velocity is a square-root controller; when it points mostly along the target velocity, its
-   cross part is held to 1/sqrt(2) of the limit: the "corner" rule);
+   acceleration changes at most at ``PSC_JERK_XY`` (``shape_vel_accel_xy`` in
+   ``libraries/AP_Math/control.cpp``): the correction toward the target velocity is a square-root
+   controller limited to ``WPNAV_ACCEL`` (when it points mostly along the target velocity, its
+   cross part is held to 1/sqrt(2) of the limit: the "corner" rule), and a target acceleration,
+   when the setpoint carries one, is added to it after that limit (GUIDED asks for no limit of the
+   total); between two setpoints the target velocity itself moves on by the target acceleration
+   (``update_vel_accel_xy`` on GUIDED's own target);
 2. flies that trajectory with its position controller (``AC_PosControl::update_NE_controller``):
    a P loop on the desired position (``PSC_POSXY_P``) adds to the desired velocity, a PID on the
    velocity error (``PSC_VELXY_P/I/D``, error and derivative filtered at ``PSC_VELXY_FLTE/FLTD``)
@@ -192,15 +195,17 @@ class NEPositionController:
         self._error = None  # the filtered velocity error (None: take the first one as it is)
         self._derivative = (0.0, 0.0)
         self._queue.clear()
-        self._held = (float(vel_ne_m_s[0]), float(vel_ne_m_s[1]))
+        self._held = (float(vel_ne_m_s[0]), float(vel_ne_m_s[1]), 0.0, 0.0, -math.inf)
+        self._vin = self._held[:2]
+        self._target_key: tuple | None = None  # (received, vn, ve) of the setpoint held
         self._t_s = 0.0
 
-    def _delayed(self, vel_target_ne_m_s: tuple[float, float]) -> tuple[float, float]:
+    def _delayed(self, target: tuple) -> tuple:
         delay = self.params.input_delay_s
         if delay <= 0.0:
-            return vel_target_ne_m_s
+            return target
         queue = self._queue
-        queue.append((self._t_s, vel_target_ne_m_s))
+        queue.append((self._t_s, target))
         due = self._t_s - delay + 1e-9
         while len(queue) > 1 and queue[1][0] <= due:
             queue.popleft()
@@ -209,14 +214,29 @@ class NEPositionController:
         self._held = queue[0][1]
         return self._held
 
+    def _target(self, dt_s: float, target: tuple) -> tuple[float, float, float, float]:
+        """GUIDED's own target (velocity, acceleration) this step: a new setpoint replaces it,
+        and until the next one its velocity moves on by its acceleration (``update_vel_accel_xy``)."""
+        vn, ve, an, ae, received = target
+        if (received, vn, ve) != self._target_key:
+            self._target_key = (received, vn, ve)
+            self._vin = (vn, ve)
+        else:
+            self._vin = (self._vin[0] + an * dt_s, self._vin[1] + ae * dt_s)
+        return self._vin[0], self._vin[1], an, ae
+
     def update(self, dt_s: float, vel_target_ne_m_s: tuple[float, float], pos_ne_m: tuple[float, float],
-               vel_ne_m_s: tuple[float, float]) -> tuple[float, float]:
-        """One step: the velocity target given now, the vehicle's (estimated) position and
-        velocity; returns the horizontal acceleration the vehicle flies (NE, m/s^2): the
-        controller's command through the airframe's lag, less the drag at that velocity."""
+               vel_ne_m_s: tuple[float, float], acc_target_ne_m_s2: tuple[float, float] = (0.0, 0.0),
+               received_s: float = 0.0) -> tuple[float, float]:
+        """One step: the velocity and acceleration target given now (``received_s``: when that
+        setpoint arrived, so that a new one is told from the one held), the vehicle's (estimated)
+        position and velocity; returns the horizontal acceleration the vehicle flies (NE, m/s^2):
+        the controller's command through the airframe's lag, less the drag at that velocity."""
         p = self.params
         self._t_s += dt_s
-        vin_n, vin_e = self._delayed((float(vel_target_ne_m_s[0]), float(vel_target_ne_m_s[1])))
+        target = (float(vel_target_ne_m_s[0]), float(vel_target_ne_m_s[1]),
+                  float(acc_target_ne_m_s2[0]), float(acc_target_ne_m_s2[1]), received_s)
+        vin_n, vin_e, ain_n, ain_e = self._target(dt_s, self._delayed(target))
         pn, pe = self.desired_pos_ne_m
         vn, ve = self.desired_vel_ne_m_s
         an, ae = self.desired_acc_ne_m_s2
@@ -227,6 +247,7 @@ class NEPositionController:
         k_pa = p.jerk_max_m_s3 / p.accel_max_m_s2
         tn, te = _sqrt_controller_ne(vin_n - vn, vin_e - ve, k_pa, p.jerk_max_m_s3, dt_s)
         tn, te = corner_limited(tn, te, vin_n, vin_e, p.accel_max_m_s2)
+        tn, te = tn + ain_n, te + ain_e
         dn, de = _limit_length(tn - an, te - ae, p.jerk_max_m_s3 * dt_s)
         an, ae = an + dn, ae + de
         self.desired_pos_ne_m = (pn, pe)

@@ -280,19 +280,20 @@ class VehicleModel:
         self._noise_ned_m = (0.0, 0.0, 0.0)
         self._pos_history: deque = deque()  # (t, position) over the last pos_delay_s, oldest first
 
-    def _delayed(self, vel_cmd_ned_m_s, yaw_rate_cmd_rad_s):
-        """The command as the vehicle sees it ``delay_s`` after it was given (dead time)."""
+    def _delayed(self, vel_cmd_ned_m_s, yaw_rate_cmd_rad_s, acc_ff_ned_m_s2=(0.0, 0.0, 0.0)):
+        """The command (velocity, yaw rate, acceleration feed-forward) as the vehicle sees it
+        ``delay_s`` after it was given (dead time)."""
         if self.params.delay_s <= 0.0:
-            return vel_cmd_ned_m_s, yaw_rate_cmd_rad_s
+            return vel_cmd_ned_m_s, yaw_rate_cmd_rad_s, acc_ff_ned_m_s2
         queue = self._cmd_queue
-        queue.append((self.state.t_s, tuple(vel_cmd_ned_m_s), yaw_rate_cmd_rad_s))
+        queue.append((self.state.t_s, tuple(vel_cmd_ned_m_s), yaw_rate_cmd_rad_s, tuple(acc_ff_ned_m_s2)))
         due = self.state.t_s - self.params.delay_s + 1e-9
         while len(queue) > 1 and queue[1][0] <= due:
             queue.popleft()
         if queue[0][0] > due:  # no command old enough yet: carry on as now
-            return tuple(self.state.vel_ned_m_s), self.state.yaw_rate_rad_s
-        _, vel, yaw_rate = queue[0]
-        return vel, yaw_rate
+            return tuple(self.state.vel_ned_m_s), self.state.yaw_rate_rad_s, (0.0, 0.0, 0.0)
+        _, vel, yaw_rate, acc_ff = queue[0]
+        return vel, yaw_rate, acc_ff
 
     def _draw_noise(self) -> None:
         """Draw this step's position noise, so a report depends on the step, not on how often it is read."""
@@ -317,7 +318,8 @@ class VehicleModel:
         yaw_rate_cmd_rad_s : float
             Commanded yaw rate (clipped to the limit).
         acc_ff_ned_m_s2 : tuple of float
-            Acceleration feed-forward added to the lag response (then limited).
+            Acceleration feed-forward added to the lag response (then limited), after the same
+            dead time as the command.
         grounded : bool
             Motors off (disarmed): the vehicle stays where it is if it is on the ground.
         acc_ne_m_s2 : tuple of float, optional
@@ -333,7 +335,8 @@ class VehicleModel:
         if grounded and s.on_ground:
             self._stay_on_ground(dt_s)
             return
-        vel_cmd_ned_m_s, yaw_rate_cmd_rad_s = self._delayed(vel_cmd_ned_m_s, yaw_rate_cmd_rad_s)
+        vel_cmd_ned_m_s, yaw_rate_cmd_rad_s, acc_ff_ned_m_s2 = self._delayed(vel_cmd_ned_m_s, yaw_rate_cmd_rad_s,
+                                                                             acc_ff_ned_m_s2)
         k = _lag_gain(dt_s, p.tau_vel_s)
         v = s.vel_ned_m_s
         dv_max = p.a_max_m_s2 * dt_s

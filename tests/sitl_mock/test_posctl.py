@@ -263,3 +263,35 @@ def test_the_drag_is_what_the_real_arducopter_leans_against_at_steady_speeds():
         measured = float(np.median(drag[near]))
         model = math.hypot(*ctl.drag_ne_m_s2((float(np.mean(speed[near])), 0.0)))
         assert model == pytest.approx(measured, rel=0.05)
+
+
+def _circle_lag_m_s(feed_forward: bool, v_m_s: float = 5.0, a_m_s2: float = 2.0) -> float:
+    """The shaped trajectory's steady velocity lag behind a target turning at ``a / V``, the target
+    sent afresh at 50 Hz (with its centripetal acceleration when ``feed_forward``)."""
+    ctl = NEPositionController(PosControlParams(input_delay_s=0.0))
+    omega, dt = a_m_s2 / v_m_s, 0.0025
+    ctl.reset((0.0, 0.0), (v_m_s, 0.0), (0.0, 0.0))
+    sent = 0.0
+    for k in range(int(20.0 / dt)):
+        t = k * dt
+        if t >= sent + 0.02 - 1e-9 or k == 0:
+            sent = t
+        c, s = math.cos(omega * sent), math.sin(omega * sent)
+        acc = (-a_m_s2 * s, a_m_s2 * c) if feed_forward else (0.0, 0.0)
+        ctl.update(dt, (v_m_s * c, v_m_s * s), ctl.desired_pos_ne_m, ctl.desired_vel_ne_m_s, acc, sent)
+    t = 20.0
+    target = (v_m_s * math.cos(omega * t), v_m_s * math.sin(omega * t))
+    return math.hypot(target[0] - ctl.desired_vel_ne_m_s[0], target[1] - ctl.desired_vel_ne_m_s[1])
+
+
+def test_without_feed_forward_the_trajectory_lags_a_turning_target_by_v_omega_over_kpa():
+    # shape_vel_accel_xy closes the velocity error with KPa = jerk / accel = 2 1/s (linear below
+    # 5 / 2^2 = 1.25 m/s): to turn at V omega = 2 m/s^2 it needs an error of 2 / 2 = 1 m/s.
+    assert _circle_lag_m_s(False) == pytest.approx(1.0, rel=0.03)
+
+
+def test_with_the_acceleration_target_the_trajectory_turns_with_the_target():
+    # The target acceleration is added after the correction's limit and moves GUIDED's own target
+    # on between setpoints: the correction has nothing steady left to do (what is left is the
+    # chord of one 20 ms hold, V omega dt / 2 = 0.02 m/s).
+    assert _circle_lag_m_s(True) < 0.03

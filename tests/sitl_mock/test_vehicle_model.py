@@ -167,6 +167,19 @@ def test_a_delayed_velocity_step_is_the_first_order_step_shifted_by_the_delay():
     assert model.state.vel_ned_m_s[0] == pytest.approx(1.0 - math.exp(-1.0), abs=1e-2)
 
 
+def test_the_acceleration_feed_forward_waits_out_the_same_dead_time():
+    # A hover asked to hold zero velocity and to accelerate north at 1 m/s^2: nothing happens for
+    # the 0.2 s dead time, then the loop (tau 10 s: it barely pulls back) gathers about 1 m/s per second.
+    model = copter(tau_vel_s=10.0, delay_s=0.2)
+    for _ in range(round(0.2 / DT_S) - 1):
+        model.step_multirotor(DT_S, (0.0, 0.0, 0.0), 0.0, (1.0, 0.0, 0.0))
+    assert model.state.vel_ned_m_s[0] == 0.0
+    for _ in range(round(0.5 / DT_S) + 1):
+        model.step_multirotor(DT_S, (0.0, 0.0, 0.0), 0.0, (1.0, 0.0, 0.0))
+    # v' = 1 - v / 10 from v = 0: v(0.5) = 10 (1 - exp(-0.05))
+    assert model.state.vel_ned_m_s[0] == pytest.approx(10.0 * (1.0 - math.exp(-0.05)), abs=5e-3)
+
+
 def test_a_second_acceleration_lag_gives_the_second_order_step_response():
     # The acceleration the loop asks for, (c - v) / t1, is followed through a lag t2:
     # t1 t2 v'' + t1 v' + v = c; for t1 = 0.3, t2 = 0.1 underdamped, s = -1/(2 t2) +- i w with
