@@ -1069,7 +1069,7 @@ class MavLink:
             self._mav.set_position_target_local_ned_send(
                 self.time_boot_ms(), ts, tc, sp.coordinate_frame, sp.type_mask,
                 0.0, 0.0, 0.0, sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
-                0.0, 0.0, 0.0, 0.0, sp.yaw_rate_ned_rad_s)
+                sp.afx_ned_m_s2, sp.afy_ned_m_s2, 0.0, 0.0, sp.yaw_rate_ned_rad_s)
         else:
             self._mav.set_attitude_target_send(
                 self.time_boot_ms(), ts, tc, sp.type_mask, list(sp.q), 0.0, 0.0, 0.0, sp.thrust)

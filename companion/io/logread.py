@@ -624,10 +624,11 @@ class PacketEncoder:
 
     def velocity_setpoint_packet(self, target_system: int, target_component: int, type_mask: int,
                                  coordinate_frame: int, vx_m_s: float, vy_m_s: float, vz_m_s: float,
-                                 yaw_rate_rad_s: float, time_boot_ms: int = 0) -> bytes:
+                                 yaw_rate_rad_s: float, time_boot_ms: int = 0, afx_m_s2: float = 0.0,
+                                 afy_m_s2: float = 0.0) -> bytes:
         return self._pack(self._mav.set_position_target_local_ned_encode(
             int(time_boot_ms), target_system, target_component, coordinate_frame, type_mask,
-            0.0, 0.0, 0.0, vx_m_s, vy_m_s, vz_m_s, 0.0, 0.0, 0.0, 0.0, yaw_rate_rad_s))
+            0.0, 0.0, 0.0, vx_m_s, vy_m_s, vz_m_s, afx_m_s2, afy_m_s2, 0.0, 0.0, yaw_rate_rad_s))
 
     def attitude_target_packet(self, target_system: int, target_component: int, type_mask: int,
                                q: tuple[float, float, float, float], thrust: float,

@@ -23,6 +23,15 @@ turn left). Two output adapters turn it into what an autopilot flies:
   ``type_mask`` as one group: a z position with xy ignored makes it treat x, y as used too (it
   would fly to x = y = 0). Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
   and yaw ignored; vx, vy, vz, yaw_rate used), which PX4 and ArduPilot both accept.
+* with ``guidance.accel_feedforward`` (the default for copters and rovers), the lateral command
+  itself as the **acceleration target** ``(afx, afy)``: ``a_cmd`` (limited to the flight's
+  acceleration limit) along the left normal of the commanded course, ``afz = 0``; mask ``0x0407``
+  (1031: position and yaw ignored). ArduCopter GUIDED adds it to its velocity correction
+  (``shape_vel_accel_xy``, after that correction's ``WPNAV_ACCEL`` limit) and moves its velocity
+  target on by it until the next setpoint; PX4 adds it to its velocity loop's output as
+  feed-forward. Either way the autopilot turns with the command instead of after its velocity
+  error has grown (docs/real_firmware.md, "The command as acceleration feed-forward"). ArduCopter
+  reads the three acceleration bits as one group too, so all three are used.
 
 **Attitude** (fixed wing): ``SET_ATTITUDE_TARGET`` with the coordinated-turn bank angle
 ``phi = atan(a_cmd / g)`` limited to ``max_bank_deg``. In NED a positive roll is right wing down,
@@ -57,6 +66,8 @@ IGNORE_YAW_RATE = 2048
 TYPE_MASK_VELOCITY_YAW_RATE = (
     IGNORE_X | IGNORE_Y | IGNORE_Z | IGNORE_AX | IGNORE_AY | IGNORE_AZ | IGNORE_YAW
 )
+#: velocity + acceleration (feed-forward) + yaw rate; position and yaw ignored. 1031 = 0x0407.
+TYPE_MASK_VELOCITY_ACCEL_YAW_RATE = IGNORE_X | IGNORE_Y | IGNORE_Z | IGNORE_YAW
 MAV_FRAME_LOCAL_NED = 1
 
 # SET_ATTITUDE_TARGET type_mask bits.
@@ -131,7 +142,8 @@ def profile_targets(profile, s_m: float, feed_forward: bool = True) -> tuple[flo
 
 @dataclass(frozen=True)
 class VelocitySetpoint:
-    """Fields of one SET_POSITION_TARGET_LOCAL_NED (velocity + yaw rate, MAV_FRAME_LOCAL_NED)."""
+    """Fields of one SET_POSITION_TARGET_LOCAL_NED (velocity + yaw rate, and the horizontal
+    acceleration feed-forward when ``type_mask`` uses it; MAV_FRAME_LOCAL_NED)."""
 
     vx_ned_m_s: float
     vy_ned_m_s: float
@@ -140,6 +152,8 @@ class VelocitySetpoint:
     type_mask: int = TYPE_MASK_VELOCITY_YAW_RATE
     coordinate_frame: int = MAV_FRAME_LOCAL_NED
     course_cmd_enu_rad: float = math.nan  # the course the velocity vector points along (ENU)
+    afx_ned_m_s2: float = 0.0  # acceleration feed-forward north (sent when type_mask uses it)
+    afy_ned_m_s2: float = 0.0  # acceleration feed-forward east
 
     @property
     def is_hold(self) -> bool:
@@ -165,6 +179,7 @@ def velocity_setpoint(
     alt_m: float,
     hold: AltitudeHold,
     drift_ned_m_s: tuple[float, float] = (0.0, 0.0),
+    accel_ff_max_m_s2: float = 0.0,
 ) -> VelocitySetpoint:
     """Velocity + yaw-rate setpoint for a lateral acceleration command.
 
@@ -179,6 +194,9 @@ def velocity_setpoint(
     drift_ned_m_s : the velocity estimate's drift (north, east; :mod:`companion.guidance.drift`),
         subtracted from the horizontal velocity so that the vehicle, which flies the setpoint plus
         the drift, moves along the commanded course at the commanded speed.
+    accel_ff_max_m_s2 : > 0: send the command, limited to this, as the acceleration target along
+        the left normal of the commanded course (mask ``TYPE_MASK_VELOCITY_ACCEL_YAW_RATE``);
+        0: no acceleration target (mask ``TYPE_MASK_VELOCITY_YAW_RATE``).
 
     Examples
     --------
@@ -187,6 +205,12 @@ def velocity_setpoint(
     >>> sp = velocity_setpoint(0.0, 0.0, 5.0, 0.02, 10.0, AltitudeHold(10.0))
     >>> round(sp.vx_ned_m_s, 9), round(sp.vy_ned_m_s, 9), sp.yaw_rate_ned_rad_s
     (0.0, 5.0, -0.0)
+
+    Turning left at 3 m/s^2 while flying east, feed-forward limited to 2.5: it points north.
+
+    >>> sp = velocity_setpoint(3.0, 0.0, 5.0, 0.0, 10.0, AltitudeHold(10.0), accel_ff_max_m_s2=2.5)
+    >>> round(sp.afx_ned_m_s2, 9), round(sp.afy_ned_m_s2, 9), sp.type_mask == TYPE_MASK_VELOCITY_ACCEL_YAW_RATE
+    (2.5, -0.0, True)
     """
     if not (speed_m_s > 0 and math.isfinite(speed_m_s)):
         raise ValueError(f"speed_m_s: expected a finite number > 0, got {speed_m_s!r}")
@@ -201,7 +225,19 @@ def velocity_setpoint(
         vz_ned_m_s=hold.vz_ned_m_s(alt_m),
         yaw_rate_ned_rad_s=frames.yaw_rate_ned_from_enu(omega_enu_rad_s),
         course_cmd_enu_rad=course_cmd,
+        **_feed_forward(a_cmd_m_s2, course_cmd, accel_ff_max_m_s2),
     )
+
+
+def _feed_forward(a_cmd_m_s2: float, course_cmd_enu_rad: float, a_max_m_s2: float) -> dict:
+    """The acceleration target's fields for :class:`VelocitySetpoint` (none for ``a_max <= 0``):
+    the command limited to ``a_max`` along the left normal ``(-sin c, cos c)`` (ENU) of the
+    commanded course ``c``, in NED."""
+    if not a_max_m_s2 > 0.0:
+        return {}
+    a = max(-a_max_m_s2, min(a_max_m_s2, a_cmd_m_s2))
+    north, east = a * math.cos(course_cmd_enu_rad), -a * math.sin(course_cmd_enu_rad)
+    return {"afx_ned_m_s2": north, "afy_ned_m_s2": east, "type_mask": TYPE_MASK_VELOCITY_ACCEL_YAW_RATE}
 
 
 def hold_setpoint(alt_m: float, hold: AltitudeHold | None) -> VelocitySetpoint:

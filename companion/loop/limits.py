@@ -27,10 +27,10 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
+from companion.io.setpoints import G_M_S2
 from companion.mission.model import Mission
 from companion.mission.turns import slowed_for_turns
 
-G_M_S2 = 9.80665
 #: The parameters read per autopilot (``AutopilotInfo.kind``).
 LIMIT_PARAMS = {"ardupilot": ("WPNAV_ACCEL",), "px4": ("MPC_TILTMAX_AIR",)}
 WPNAV_ACCEL_DEFAULT_CM_S2 = 250.0  # AC_WPNav: used when WPNAV_ACCEL <= 0
@@ -81,9 +81,53 @@ def mission_with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[
     than ``along_track.turn_accel_share`` allows (:func:`companion.mission.turns.slowed_for_turns`).
     """
     mission, line = _with_limit(mission, limit)
-    a_max = mission.vehicle.a_max_m_s2 if mission.vehicle is not None else mission.guidance.a_max_m_s2
-    mission, turns = slowed_for_turns(mission, a_max)
+    mission, turns = slowed_for_turns(mission, flight_limit_m_s2(mission))
     return mission, line if turns is None else f"{line}; {turns}"
+
+
+def flight_limit_m_s2(mission: Mission) -> float:
+    """The lateral-acceleration limit a flight of ``mission`` uses (inf: none known): its
+    ``vehicle:`` block's, else ``guidance.a_max_m_s2`` (the autopilot's once
+    :func:`mission_with_limit` has read it)."""
+    return mission.vehicle.a_max_m_s2 if mission.vehicle is not None else mission.guidance.a_max_m_s2
+
+
+#: Autopilots whose flights send the acceleration target unless the mission says otherwise:
+#: ArduCopter's, whose GUIDED chain the mock flies from the firmware's own formulas
+#: (docs/real_firmware.md, "The command as acceleration feed-forward"; PX4's response to it is not
+#: yet modelled).
+ACCEL_FEEDFORWARD_AUTOPILOTS = ("ardupilot",)
+
+
+def accel_feedforward_max(mission: Mission, autopilot: str | None) -> float:
+    """Up to what a velocity-output flight of ``mission`` on ``autopilot`` (``"px4"``,
+    ``"ardupilot"``) sends its lateral command as the setpoint's acceleration target (m/s^2,
+    :mod:`companion.io.setpoints`): 0 when it does not (``guidance.accel_feedforward: false``, or
+    absent and the autopilot not in :data:`ACCEL_FEEDFORWARD_AUTOPILOTS`), else the flight's limit
+    (:func:`flight_limit_m_s2`), or ``g`` when none is known.
+
+    >>> from companion.mission.loader import parse_mission
+    >>> def line(guidance):  # a 50 m line at 5 m/s with this guidance: block
+    ...     return parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], "
+    ...                          "[50, 0]]}, guidance: " + guidance + "}")
+    >>> accel_feedforward_max(line("{a_max_m_s2: 2.5}"), "ardupilot"), accel_feedforward_max(line("{}"), "px4")
+    (2.5, 0.0)
+    >>> round(accel_feedforward_max(line("{accel_feedforward: true}"), "px4"), 5)  # no limit known: g
+    9.80665
+    >>> accel_feedforward_max(line("{accel_feedforward: false}"), "ardupilot")
+    0.0
+    """
+    on = mission.accel_feedforward
+    if on is None:
+        on = autopilot in ACCEL_FEEDFORWARD_AUTOPILOTS
+    return accel_feedforward_limit_m_s2(mission) if on else 0.0
+
+
+def accel_feedforward_limit_m_s2(mission: Mission) -> float:
+    """What the acceleration target is limited to when it is sent: the flight's limit
+    (:func:`flight_limit_m_s2`), or ``g`` when none is known."""
+    a_max = flight_limit_m_s2(mission)
+    return float(a_max) if math.isfinite(a_max) else G_M_S2
 
 
 def _with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[Mission, str]:

@@ -36,7 +36,7 @@ import math
 import signal
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from types import FrameType
 
@@ -58,7 +58,7 @@ from companion.io.link import (
 from companion.io.setpoints import G_M_S2
 from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_beside
 from companion.loop.driver import make_guidance
-from companion.loop.limits import apply_autopilot_limits
+from companion.loop.limits import accel_feedforward_max, apply_autopilot_limits
 from companion.loop.flight import AutopilotClock, FlightLoop, FlightRecord
 from companion.loop.health import HealthMonitor, HealthOptions, turn_allowance_m
 from companion.loop.profiles import AutopilotProfile, profile_for
@@ -290,6 +290,8 @@ class FlightRunner:
                             altitude_m=self.mission.altitude_m, stale_s=self.opt.stale_s, output=output,
                             max_bank_deg=self.opt.max_bank_deg, profile=self.mission.profile,
                             drift_tc_s=self.opt.drift_tc_s)
+        if config.output == "velocity":
+            config = replace(config, accel_ff_max_m_s2=accel_feedforward_max(self.mission, s.link.info.autopilot))
         if config.output == "attitude" and self._on_finish_action() == "land":
             raise FlightAborted("--on-finish land is not available for a fixed-wing flight; use rtl or loiter")
         return config

@@ -134,6 +134,9 @@ class TickConfig:
     gathering_fraction: float = 0.5
     profile: object = None  # the mission's PathProfile (altitude and speed along the path), or None
     drift_tc_s: float = 0.0  # time constant of the velocity estimate's drift compensation (s); 0: off
+    # the lateral command sent as acceleration feed-forward, limited to this (m/s^2); 0: not sent
+    # (companion.io.setpoints; companion.loop.limits.accel_feedforward_max)
+    accel_ff_max_m_s2: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("speed_m_s", "rate_hz", "stale_s", "max_bank_deg", "alt_gain_1_s", "max_climb_m_s"):
@@ -144,8 +147,10 @@ class TickConfig:
             raise ValueError(f"output: expected 'velocity' or 'attitude', got {self.output!r}")
         if not (0 < self.max_bank_deg < 90):
             raise ValueError(f"max_bank_deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
-        if not (math.isfinite(self.drift_tc_s) and self.drift_tc_s >= 0):
-            raise ValueError(f"drift_tc_s: expected a finite number >= 0, got {self.drift_tc_s!r}")
+        for name in ("drift_tc_s", "accel_ff_max_m_s2"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
 
     @property
     def compensates_drift(self) -> bool:
@@ -315,7 +320,8 @@ def compute_tick(
                 lead = max(-config.max_course_lead_rad, min(config.max_course_lead_rad, lead))
                 base = frames.wrap_pi(course + lead)
             speed, hold = _targets(config, output.s_proj_m)
-            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _compensated(drift_ned))
+            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _compensated(drift_ned),
+                                         config.accel_ff_max_m_s2)
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
@@ -393,7 +399,7 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     base = course_cmd_rad if math.isfinite(course_cmd_rad) else last.course_rad
     speed, hold = _targets(config, last.output.s_proj_m)
     return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold,
-                             _compensated((last.drift_n_m_s, last.drift_e_m_s)))
+                             _compensated((last.drift_n_m_s, last.drift_e_m_s)), config.accel_ff_max_m_s2)
 
 
 def _float32(x: float) -> float:

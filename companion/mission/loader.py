@@ -461,6 +461,7 @@ class _Builder(_Checks):
             profile=profile,
             vehicle=self.build_vehicle(),
             profile_limits=self.build_profile_limits() or ProfileLimits(),
+            accel_feedforward=(doc.get("guidance") or {}).get("accel_feedforward"),
         )
 
     def build_vehicle(self) -> VehicleModel | None:

@@ -70,6 +70,9 @@ class Mission:
         (:class:`companion.geometry.profile.PathProfile`), or None when both are one number.
         ``altitude_m`` and ``speed_m_s`` are then the profile's values at the path start.
     vehicle : the ``vehicle:`` block (:class:`companion.guidance.types.VehicleModel`), or None.
+    accel_feedforward : ``guidance.accel_feedforward``: a velocity-output flight sends its lateral
+        command as the setpoint's acceleration target too (:mod:`companion.io.setpoints`); None
+        (absent): the autopilot's default (:func:`companion.loop.limits.accel_feedforward_max`).
     profile_limits : the ``vertical:`` and ``along_track:`` limits
         (:class:`companion.geometry.profile.ProfileLimits`): those ``profile`` was smoothed to, and
         those a flight slows down for turns with (:func:`companion.mission.turns.slowed_for_turns`)
@@ -91,6 +94,7 @@ class Mission:
     profile: PathProfile | None = None
     vehicle: VehicleModel | None = None
     profile_limits: ProfileLimits = field(default_factory=ProfileLimits)
+    accel_feedforward: bool | None = None
 
     def __post_init__(self) -> None:
         if self.on_finish not in ON_FINISH:

@@ -56,7 +56,8 @@ DEBUG_INDEX = {name: i for i, name in enumerate(DEBUG_FIELDS)}
 
 
 class LoggedSetpoint(NamedTuple):
-    """The velocity + yaw-rate fields of one logged SET_POSITION_TARGET_LOCAL_NED (NED)."""
+    """The velocity, yaw-rate and horizontal acceleration fields of one logged
+    SET_POSITION_TARGET_LOCAL_NED (NED; the acceleration as sent, whether or not the mask uses it)."""
 
     vx_ned_m_s: float
     vy_ned_m_s: float
@@ -64,6 +65,8 @@ class LoggedSetpoint(NamedTuple):
     yaw_rate_ned_rad_s: float
     type_mask: int
     coordinate_frame: int
+    afx_ned_m_s2: float = 0.0
+    afy_ned_m_s2: float = 0.0
 
 
 class LoggedAttitude(NamedTuple):
@@ -141,7 +144,7 @@ def _param_value(msg, params: dict[str, float]) -> None:
 
 
 def _setpoint(msg) -> LoggedSetpoint:
-    return LoggedSetpoint(msg.vx, msg.vy, msg.vz, msg.yaw_rate, msg.type_mask, msg.coordinate_frame)
+    return LoggedSetpoint(msg.vx, msg.vy, msg.vz, msg.yaw_rate, msg.type_mask, msg.coordinate_frame, msg.afx, msg.afy)
 
 
 def _sample(msg) -> PositionSample | None:

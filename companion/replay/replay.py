@@ -43,9 +43,9 @@ from companion.errors import LogError
 from companion.guidance.types import GuidanceLaw
 from companion.io.logread import LogWarning
 from companion.io.tlog import MISSION_SUFFIX, mission_path_beside
-from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
+from companion.io.setpoints import IGNORE_AX, AttitudeSetpoint, VelocitySetpoint
 from companion.loop.driver import TickDriver, make_guidance
-from companion.loop.limits import limit_from_params, mission_with_limit
+from companion.loop.limits import accel_feedforward_limit_m_s2, limit_from_params, mission_with_limit
 from companion.loop.tick import DEFAULT_STALE_S, TickConfig
 from companion.mission import Mission, load_mission
 from companion.mission.placement import onto_autopilot_origin
@@ -155,15 +155,25 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
 
 
 def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
-                    stale_s: float = DEFAULT_STALE_S, drift_tc_s: float = 0.0) -> TickConfig:
+                    stale_s: float = DEFAULT_STALE_S, drift_tc_s: float = 0.0,
+                    accel_ff: bool = False) -> TickConfig:
     """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
-    (``"velocity"`` or ``"attitude"``), the stale-position limit ``stale_s`` and the drift
-    compensation's time constant ``drift_tc_s`` (0: off).
+    (``"velocity"`` or ``"attitude"``), the stale-position limit ``stale_s``, the drift
+    compensation's time constant ``drift_tc_s`` (0: off) and, with ``accel_ff``, the acceleration
+    target up to the mission's limit (:func:`companion.loop.limits.accel_feedforward_limit_m_s2`).
 
     ``--max-bank-deg`` is not recorded in the log; replay uses its default (35 deg).
     """
     return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                      output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s)
+                      output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s,
+                      accel_ff_max_m_s2=accel_feedforward_limit_m_s2(mission) if accel_ff else 0.0)
+
+
+def flight_sent_accel(flight: LoggedFlight) -> bool:
+    """Whether the flight's velocity setpoints carried the acceleration target (their mask uses it):
+    the log, not the mission (whose default may have changed since), says what was sent."""
+    return any(type(tk.setpoint) is LoggedSetpoint and not tk.setpoint.type_mask & IGNORE_AX
+               for tk in flight.ticks)
 
 
 def flight_stale_s(flight: LoggedFlight) -> float:
@@ -276,7 +286,7 @@ def replay_flight(
     rate_hz = config.rate_hz if config is not None else flight_rate_hz(flight, mission)
     if config is None and flight.kind == "companion":
         config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight),
-                                 recorded_drift_tc_s(flight.ticks))
+                                 recorded_drift_tc_s(flight.ticks), flight_sent_accel(flight))
     config = config or tick_config_for(mission, rate_hz, flight_output(flight))
     guidance = guidance_factory(mission, rate_hz)
     replay = _Replay(flight, mission, tolerance, config, guidance)
@@ -429,6 +439,8 @@ class _Replay:
                 reasons.append("yaw_rate")
             if not d_vel <= tolerance.vel_m_s:
                 reasons.append("velocity")
+            if logged.type_mask != sp.type_mask:  # e.g. the acceleration target sent on one side only
+                reasons.append("type_mask")
             return reasons
         fields = _setpoint_fields(logged)
         cols["yaw_rate_logged_rad_s"][i], cols["vx_logged_m_s"][i] = fields["yaw_rate_rad_s"], fields["vx_m_s"]
@@ -479,6 +491,8 @@ def _compare_setpoints(logged, sp, tolerance: Tolerance) -> tuple[dict, list[str
             reasons.append("yaw_rate")
         if not d_vel <= tolerance.vel_m_s:
             reasons.append("velocity")
+        if logged.type_mask != sp.type_mask:
+            reasons.append("type_mask")
     elif isinstance(logged, LoggedAttitude) and isinstance(sp, AttitudeSetpoint):
         diff["attitude_diff_rad"] = d_att = rotation_between_rad(logged.q, sp.q)
         if not d_att <= tolerance.attitude_rad:

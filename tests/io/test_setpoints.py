@@ -3,6 +3,8 @@
 import math
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from companion.geometry import frames
 from companion.io import setpoints as sp
@@ -123,3 +125,39 @@ def test_left_turn_command_rolls_left_wing_down_in_ned():
     assert roll == pytest.approx(s.roll_ned_rad)
     assert yaw == pytest.approx(math.pi / 2)  # flying east: NED yaw 90 deg
     assert math.isclose(w * w + qx * qx + qy * qy + qz * qz, 1.0)
+
+
+# ----------------------------------------------------------------- acceleration feed-forward
+
+
+def test_feed_forward_mask_uses_all_acceleration_bits_and_still_ignores_position_and_yaw():
+    # ArduCopter ignores the whole acceleration target if any of its three bits is set.
+    m = sp.TYPE_MASK_VELOCITY_ACCEL_YAW_RATE
+    assert m & (64 | 128 | 256) == 0 and m & 0b111 == 0b111
+    assert m & (8 | 16 | 32) == 0 and m & 2048 == 0 and m & 1024
+    assert m == 0x0407 == 1031
+
+
+def test_feed_forward_points_left_of_the_commanded_course_and_is_limited():
+    # Flying north (ENU 90 deg), a right turn of 1.5 m/s^2: the acceleration points east.
+    s = sp.velocity_setpoint(-1.5, math.pi / 2, 5.0, 0.0, 10.0, HOLD, accel_ff_max_m_s2=2.5)
+    assert (s.afx_ned_m_s2, s.afy_ned_m_s2) == pytest.approx((0.0, 1.5), abs=1e-12)
+    assert s.type_mask == sp.TYPE_MASK_VELOCITY_ACCEL_YAW_RATE
+    # 4 m/s^2 asked, 2.5 allowed: the acceleration is limited, the yaw rate and velocity are not.
+    big = sp.velocity_setpoint(4.0, 0.0, 5.0, 0.02, 10.0, HOLD, accel_ff_max_m_s2=2.5)
+    plain = sp.velocity_setpoint(4.0, 0.0, 5.0, 0.02, 10.0, HOLD)
+    assert math.hypot(big.afx_ned_m_s2, big.afy_ned_m_s2) == pytest.approx(2.5)
+    assert (big.vx_ned_m_s, big.vy_ned_m_s, big.yaw_rate_ned_rad_s) == (
+        plain.vx_ned_m_s, plain.vy_ned_m_s, plain.yaw_rate_ned_rad_s)
+    assert (plain.afx_ned_m_s2, plain.afy_ned_m_s2, plain.type_mask) == (0.0, 0.0, 1479)
+
+
+@given(a=st.floats(-20, 20), course=st.floats(-math.pi, math.pi), a_max=st.floats(0.1, 10))
+def test_feed_forward_is_perpendicular_to_the_velocity_and_turns_it_the_commanded_way(a, course, a_max):
+    s = sp.velocity_setpoint(a, course, 5.0, 0.02, 10.0, HOLD, accel_ff_max_m_s2=a_max)
+    f_n, f_e, v_n, v_e = s.afx_ned_m_s2, s.afy_ned_m_s2, s.vx_ned_m_s, s.vy_ned_m_s
+    assert abs(f_n * v_n + f_e * v_e) <= 1e-9 * 5.0 * max(1.0, a_max)
+    assert math.hypot(f_n, f_e) == pytest.approx(min(abs(a), a_max), abs=1e-9)
+    # NED: v x f (down component) < 0 is a left (anticlockwise seen from above) turn, as a > 0.
+    cross_down = v_n * f_e - v_e * f_n
+    assert cross_down == pytest.approx(-5.0 * max(-a_max, min(a_max, a)), abs=1e-9)

@@ -80,6 +80,7 @@ def test_px4_flight_streams_a_second_before_offboard_and_records_every_setpoint(
     debug = [m for m in msgs if m.get_type() == "DEBUG_FLOAT_ARRAY"]
     assert len(sent) == runner.setpoints_sent == len(peer.setpoints)
     assert len(debug) == s["ticks"] and [int(d.array_id) for d in debug] == list(range(s["ticks"]))
+    # PX4: velocity + yaw rate, no acceleration target unless the mission asks for one.
     assert all(m.type_mask == 1479 and m.coordinate_frame == 1 for m in sent)
     assert (tmp_path / "f.tlog.mission.yaml").read_text() == "name: line\n"
     # The guidance was given ENU: 1 m north is y = +1 (left of the eastbound path). The vehicle
@@ -293,11 +294,21 @@ def test_px4_arm_acknowledged_before_its_heartbeat_shows_it_is_not_a_refusal(fre
 
 
 def test_an_airborne_ardupilot_copter_with_arm_flies_without_a_takeoff(free_udp_port, tmp_path):
-    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "ardupilot", alt=10.0, armed=True, ve=5.0)
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "ardupilot", x=1.0, alt=10.0, armed=True, ve=5.0)
     runner = fly(free_udp_port, tmp_path, peer, StraightLineGuidance(), arm=True, max_duration_s=0.5)
     assert not any(m.command == 22 for _, m in peer.commands)  # no NAV_TAKEOFF
     assert any(e.startswith("already airborne at 10.0 m") for e in runner.events)
     assert runner.summary["exit"] == "max duration"
+    # ArduPilot: the guidance's setpoints carry the command as the acceleration target (1031), a / V
+    # being the yaw rate, at right angles to the velocity bar what the drift compensation takes from
+    # it (no limit was read from this peer, so only g bounds it).
+    sent = [m for m in tlog_messages(tmp_path / "f.tlog") if m.get_type() == "SET_POSITION_TARGET_LOCAL_NED"]
+    guided = [m for m in sent if m.type_mask == 1031]
+    assert guided and all(m.type_mask in (1479, 1031) for m in sent)
+    assert max(math.hypot(m.afx, m.afy) for m in guided) > 0.1  # 1 m left of the path: it turns right
+    for m in guided:
+        assert math.hypot(m.afx, m.afy) == pytest.approx(abs(m.yaw_rate) * 5.0, rel=1e-4, abs=1e-6)
+        assert m.afx * m.vx + m.afy * m.vy == pytest.approx(0.0, abs=2e-3)
 
 
 def test_the_position_wait_shows_the_autopilots_reasons_and_ends_in_one_line(free_udp_port, tmp_path):
