@@ -327,6 +327,10 @@ class FlightRunner:
         if self._guidance is None:  # the autopilot's own acceleration limit (companion.loop.limits)
             self.mission = apply_autopilot_limits(s.link, self.mission, s.event, s.idle)
             config = self._tick_config(s)  # again: the limit may slow the path's turns (a new profile)
+        if config.accel_ff_max_m_s2 > 0:
+            why = "guidance.accel_feedforward" if self.mission.accel_feedforward else f"{s.link.info.autopilot}'s default"
+            s.event(f"acceleration feed-forward: the setpoints carry the command up to "
+                    f"{config.accel_ff_max_m_s2:.3g} m/s^2 ({why})")
         guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
         profile = profile_for(s.link.info, s)
         clock = self._clock(s)

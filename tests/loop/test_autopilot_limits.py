@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from pymavlink import mavutil
 
 from companion.cli.main import main
 from companion.guidance.types import VehicleModel
@@ -63,6 +64,14 @@ def test_with_a_limit_read_and_no_vehicle_block_the_model_monitor_is_on_and_the_
         assert used.guidance.a_max_m_s2 == min(mission_limit, read)
 
 
+def _messages(tlog: Path) -> list:
+    conn = mavutil.mavlink_connection(str(tlog))
+    out = []
+    while (m := conn.recv_match()) is not None:
+        out.append(m)
+    return out
+
+
 def test_a_flight_on_the_mock_reads_wpnav_accel_flies_within_it_and_replays(tmp_path, capsys):
     mission = tmp_path / "tight.yaml"
     # A 6 m circle at 5 m/s needs V^2/R = 4.2 m/s^2, more than the mock ArduCopter's WPNAV_ACCEL
@@ -91,5 +100,11 @@ def test_a_flight_on_the_mock_reads_wpnav_accel_flies_within_it_and_replays(tmp_
     # and it slows for the circle: V = sqrt(0.8 * 2.5 * 6) on the whole of it
     assert f"slower in the path's turns: down to {math.sqrt(12.0):.2f} m/s over 100 % of the path" in fly.stderr
     assert json.loads(fly.stdout)["a_max_m_s2"] <= 2.5 + 1e-9
+    # ArduPilot: the command also goes as the acceleration target, within the same limit.
+    assert "acceleration feed-forward: the setpoints carry the command up to 2.5 m/s^2 (ardupilot's default)" in fly.stderr
+    sent = [m for m in _messages(tlog) if m.get_type() == "SET_POSITION_TARGET_LOCAL_NED" and m.type_mask == 1031]
+    assert len(sent) > 100
+    # flown at sqrt(12) m/s the circle asks 0.8 x 2.5 = 2 m/s^2: about that, never beyond the limit
+    assert 1.5 < max(math.hypot(m.afx, m.afy) for m in sent) <= 2.5 + 1e-6
     assert main(["replay", str(tlog), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["within_tolerance"] is True
