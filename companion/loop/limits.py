@@ -97,21 +97,30 @@ def flight_limit_m_s2(mission: Mission) -> float:
 #: (docs/real_firmware.md, "The command as acceleration feed-forward"; PX4's response to it is not
 #: yet modelled).
 ACCEL_FEEDFORWARD_AUTOPILOTS = ("ardupilot",)
+#: Methods that send it only when the mission says so: ``predictive`` plans with a model of the
+#: vehicle's response learnt without it, and on the real ArduCopter its plan's jumps at a turn's
+#: entry, flown at once, swung the vehicle out (docs/real_firmware.md, same section).
+ACCEL_FEEDFORWARD_OPT_IN_METHODS = ("predictive",)
 
 
 def accel_feedforward_max(mission: Mission, autopilot: str | None) -> float:
     """Up to what a velocity-output flight of ``mission`` on ``autopilot`` (``"px4"``,
     ``"ardupilot"``) sends its lateral command as the setpoint's acceleration target (m/s^2,
     :mod:`companion.io.setpoints`): 0 when it does not (``guidance.accel_feedforward: false``, or
-    absent and the autopilot not in :data:`ACCEL_FEEDFORWARD_AUTOPILOTS`), else the flight's limit
+    absent and either the autopilot is not in :data:`ACCEL_FEEDFORWARD_AUTOPILOTS` or the method is
+    in :data:`ACCEL_FEEDFORWARD_OPT_IN_METHODS`), else the flight's limit
     (:func:`flight_limit_m_s2`), or ``g`` when none is known.
 
     >>> from companion.mission.loader import parse_mission
     >>> def line(guidance):  # a 50 m line at 5 m/s with this guidance: block
     ...     return parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], "
     ...                          "[50, 0]]}, guidance: " + guidance + "}")
-    >>> accel_feedforward_max(line("{a_max_m_s2: 2.5}"), "ardupilot"), accel_feedforward_max(line("{}"), "px4")
-    (2.5, 0.0)
+    >>> accel_feedforward_max(line("{method: corrector, a_max_m_s2: 2.5}"), "ardupilot")
+    2.5
+    >>> accel_feedforward_max(line("{method: corrector}"), "px4")
+    0.0
+    >>> accel_feedforward_max(line("{method: predictive, a_max_m_s2: 2.5}"), "ardupilot")
+    0.0
     >>> round(accel_feedforward_max(line("{accel_feedforward: true}"), "px4"), 5)  # no limit known: g
     9.80665
     >>> accel_feedforward_max(line("{accel_feedforward: false}"), "ardupilot")
@@ -119,7 +128,8 @@ def accel_feedforward_max(mission: Mission, autopilot: str | None) -> float:
     """
     on = mission.accel_feedforward
     if on is None:
-        on = autopilot in ACCEL_FEEDFORWARD_AUTOPILOTS
+        on = (autopilot in ACCEL_FEEDFORWARD_AUTOPILOTS
+              and mission.guidance.method not in ACCEL_FEEDFORWARD_OPT_IN_METHODS)
     return accel_feedforward_limit_m_s2(mission) if on else 0.0
 
 
