@@ -23,7 +23,8 @@ turn left). Two output adapters turn it into what an autopilot flies:
   ``type_mask`` as one group: a z position with xy ignored makes it treat x, y as used too (it
   would fly to x = y = 0). Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
   and yaw ignored; vx, vy, vz, yaw_rate used), which PX4 and ArduPilot both accept.
-* with ``guidance.accel_feedforward`` (the default for copters and rovers), the lateral command
+* for a copter with ``guidance.accel_feedforward`` (by default on ArduPilot, except with
+  ``predictive``; companion.loop.limits.accel_feedforward_max), the lateral command
   itself as the **acceleration target** ``(afx, afy)``: ``a_cmd`` (limited to the flight's
   acceleration limit) along the left normal of the commanded course, ``afz = 0``; mask ``0x0407``
   (1031: position and yaw ignored). ArduCopter GUIDED adds it to its velocity correction

@@ -103,13 +103,15 @@ ACCEL_FEEDFORWARD_AUTOPILOTS = ("ardupilot",)
 ACCEL_FEEDFORWARD_OPT_IN_METHODS = ("predictive",)
 
 
-def accel_feedforward_max(mission: Mission, autopilot: str | None) -> float:
+def accel_feedforward_max(mission: Mission, autopilot: str | None, vehicle: str = "copter") -> float:
     """Up to what a velocity-output flight of ``mission`` on ``autopilot`` (``"px4"``,
     ``"ardupilot"``) sends its lateral command as the setpoint's acceleration target (m/s^2,
-    :mod:`companion.io.setpoints`): 0 when it does not (``guidance.accel_feedforward: false``, or
-    absent and either the autopilot is not in :data:`ACCEL_FEEDFORWARD_AUTOPILOTS` or the method is
-    in :data:`ACCEL_FEEDFORWARD_OPT_IN_METHODS`), else the flight's limit
-    (:func:`flight_limit_m_s2`), or ``g`` when none is known.
+    :mod:`companion.io.setpoints`): 0 when it does not (a ``vehicle`` other than a copter: ArduPilot
+    Rover ignores a setpoint that carries one, ``GCS_MAVLINK_Rover``'s "set ACC_IGNORE in mask";
+    ``guidance.accel_feedforward: false``; or absent and either the autopilot is not in
+    :data:`ACCEL_FEEDFORWARD_AUTOPILOTS` or the method is in
+    :data:`ACCEL_FEEDFORWARD_OPT_IN_METHODS`), else the flight's limit (:func:`flight_limit_m_s2`),
+    or ``g`` when none is known.
 
     >>> from companion.mission.loader import parse_mission
     >>> def line(guidance):  # a 50 m line at 5 m/s with this guidance: block
@@ -125,7 +127,11 @@ def accel_feedforward_max(mission: Mission, autopilot: str | None) -> float:
     9.80665
     >>> accel_feedforward_max(line("{accel_feedforward: false}"), "ardupilot")
     0.0
+    >>> accel_feedforward_max(line("{accel_feedforward: true}"), "ardupilot", "rover")
+    0.0
     """
+    if vehicle != "copter":
+        return 0.0
     on = mission.accel_feedforward
     if on is None:
         on = (autopilot in ACCEL_FEEDFORWARD_AUTOPILOTS

@@ -291,7 +291,8 @@ class FlightRunner:
                             max_bank_deg=self.opt.max_bank_deg, profile=self.mission.profile,
                             drift_tc_s=self.opt.drift_tc_s)
         if config.output == "velocity":
-            config = replace(config, accel_ff_max_m_s2=accel_feedforward_max(self.mission, s.link.info.autopilot))
+            info = s.link.info
+            config = replace(config, accel_ff_max_m_s2=accel_feedforward_max(self.mission, info.autopilot, info.vehicle))
         if config.output == "attitude" and self._on_finish_action() == "land":
             raise FlightAborted("--on-finish land is not available for a fixed-wing flight; use rtl or loiter")
         return config
@@ -331,6 +332,9 @@ class FlightRunner:
             why = "guidance.accel_feedforward" if self.mission.accel_feedforward else f"{s.link.info.autopilot}'s default"
             s.event(f"acceleration feed-forward: the setpoints carry the command up to "
                     f"{config.accel_ff_max_m_s2:.3g} m/s^2 ({why})")
+        elif self.mission.accel_feedforward and config.output == "velocity":
+            s.event(f"guidance.accel_feedforward not used: only a copter takes an acceleration target "
+                    f"(this is a {s.link.info.vehicle})")
         guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
         profile = profile_for(s.link.info, s)
         clock = self._clock(s)

@@ -362,7 +362,7 @@ MISSION = Object(
                     "a_max_m_s2": Field(Number(exclusive_minimum=0, maximum=100), "predictive: the "
                                         "vehicle's lateral-acceleration limit; every command is "
                                         "clipped to it (absent: no limit)"),
-                    "accel_feedforward": Field(Boolean(), "velocity output (copters, rovers): send "
+                    "accel_feedforward": Field(Boolean(), "copters (never rovers): send "
                                                "the lateral command as the setpoint's acceleration "
                                                "target too, so the autopilot turns with it (absent: "
                                                "on for ArduPilot except with predictive, off for "

@@ -41,7 +41,8 @@ PX4_HOLD = (4 << 16) | (3 << 24)
 class KinematicAutopilot(threading.Thread):
     def __init__(self, dest, autopilot="px4", x=0.0, y=0.0, alt=10.0, vn=0.0, ve=0.0, armed=True,
                  drop_positions_at_s=None, mode_change_at_s=None, arm_refusals=0, mode_return_at_s=None,
-                 arm_delay_s=0.0, positions_from_s=0.0, unknown_ids_hz=0.0, yaw=math.pi / 2, yaw_turns=True):
+                 arm_delay_s=0.0, positions_from_s=0.0, unknown_ids_hz=0.0, yaw=math.pi / 2, yaw_turns=True,
+                 rover=False):
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -50,8 +51,9 @@ class KinematicAutopilot(threading.Thread):
         self.mav.robust_parsing = True
         self.px4 = autopilot == "px4"
         self.ap_code = 12 if self.px4 else 3
-        self.guided_mode = PX4_OFFBOARD if self.px4 else 4
-        self.hold_mode = PX4_HOLD if self.px4 else 5
+        self.mav_type = 10 if rover else 2  # MAV_TYPE_GROUND_ROVER, MAV_TYPE_QUADROTOR
+        self.guided_mode = PX4_OFFBOARD if self.px4 else (15 if rover else 4)  # ArduPilot GUIDED
+        self.hold_mode = PX4_HOLD if self.px4 else (4 if rover else 5)  # Rover HOLD, Copter LOITER
         self.custom_mode = self.hold_mode
         self.armed = armed
         self.pos = [x, y, -alt]
@@ -109,7 +111,7 @@ class KinematicAutopilot(threading.Thread):
                 self.armed, self.armed_at_s = True, None
             if t >= next_hb:
                 base = 1 | (128 if self.armed else 0)
-                self.mav.heartbeat_send(2, self.ap_code, base, self.custom_mode, 4)
+                self.mav.heartbeat_send(self.mav_type, self.ap_code, base, self.custom_mode, 4)
                 if t < self.positions_from_s:
                     self.mav.statustext_send(4, b"PreArm: Need Position Estimate")
                     self.mav.ekf_status_report_send(1 | 2, 0, 0, 0, 0, 0)

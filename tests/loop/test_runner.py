@@ -5,6 +5,7 @@ recording. The real guidance and the mock autopilot are exercised in tests/e2e.
 """
 
 import math
+from dataclasses import replace
 
 import pytest
 from pymavlink import mavutil
@@ -309,6 +310,24 @@ def test_an_airborne_ardupilot_copter_with_arm_flies_without_a_takeoff(free_udp_
     for m in guided:
         assert math.hypot(m.afx, m.afy) == pytest.approx(abs(m.yaw_rate) * 5.0, rel=1e-4, abs=1e-6)
         assert m.afx * m.vx + m.afy * m.vy == pytest.approx(0.0, abs=2e-3)
+
+
+def test_an_ardupilot_rover_gets_no_acceleration_target_even_when_the_mission_asks(free_udp_port, tmp_path):
+    # ArduPilot Rover ignores a SET_POSITION_TARGET_LOCAL_NED that carries one ("set ACC_IGNORE in mask").
+    peer = KinematicAutopilot(("127.0.0.1", free_udp_port), "ardupilot", x=1.0, alt=0.0, armed=True, ve=5.0,
+                              rover=True)
+    mission = replace(line_mission(), accel_feedforward=True)
+    peer.start()
+    opts = FlyOptions(connect=f"udpin:127.0.0.1:{free_udp_port}", rate_hz=50.0, tlog_path=str(tmp_path / "f.tlog"),
+                      heartbeat_timeout_s=5.0, max_duration_s=0.5)
+    runner = FlightRunner(mission, opts, Status(quiet=True), guidance=StraightLineGuidance())
+    try:
+        runner.run()
+    finally:
+        peer.stop()
+    sent = [m for m in tlog_messages(tmp_path / "f.tlog") if m.get_type() == "SET_POSITION_TARGET_LOCAL_NED"]
+    assert sent and all(m.type_mask == 1479 for m in sent)
+    assert any(e.startswith("guidance.accel_feedforward not used: only a copter") for e in runner.events)
 
 
 def test_the_position_wait_shows_the_autopilots_reasons_and_ends_in_one_line(free_udp_port, tmp_path):
