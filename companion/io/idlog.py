@@ -30,6 +30,7 @@ from companion.sim.identify import Samples, resample
 MAV_FRAME_LOCAL_NED = 1
 MASK_IGNORE_VEL = 0b111000  # bits 3..5: vx, vy, vz ignored
 MASK_IGNORE_YAW_RATE = 1 << 11
+MASK_IGNORE_ACCEL = 0b111000000  # bits 6..8: afx, afy, afz (ArduCopter ignores all three if any is set)
 ENVELOPE_PERCENTILE = 2.0
 
 _IDS = {MSG_ID["SET_POSITION_TARGET_LOCAL_NED"], MSG_ID["LOCAL_POSITION_NED"], MSG_ID["ATTITUDE"]}
@@ -49,10 +50,13 @@ def read_identification_samples(path: str | Path) -> Samples:
     """The commands and the response in a tlog, on the identification grid.
 
     Raises :class:`companion.errors.LogError` (one line naming the file and what is missing)
-    when the file cannot be read or lacks either direction.
+    when the file cannot be read or lacks either direction, or when its setpoints carried an
+    acceleration target (a flight with ``guidance.accel_feedforward``): the model is of the response
+    to velocity setpoints alone, and the target would be taken for the vehicle's own quickness.
     """
     path = Path(path)
     setpoints = []
+    with_accel = 0
     lpn: dict[tuple[int, int], list] = {}
     att: dict[tuple[int, int], list] = {}
     for rec in TlogReader(path, decode_ids=_IDS):
@@ -65,6 +69,7 @@ def read_identification_samples(path: str | Path) -> Samples:
                 continue
             yaw_rate = 0.0 if msg.type_mask & MASK_IGNORE_YAW_RATE else msg.yaw_rate
             setpoints.append((rec.time_s, msg.vx, msg.vy, yaw_rate, msg.target_system))
+            with_accel += not msg.type_mask & MASK_IGNORE_ACCEL and (msg.afx != 0.0 or msg.afy != 0.0)
         elif kind == "LOCAL_POSITION_NED":
             lpn.setdefault((rec.src_system, rec.src_component), []).append(
                 (rec.time_s, msg.time_boot_ms * 1e-3, msg.vx, msg.vy, msg.x, msg.y))
@@ -74,6 +79,9 @@ def read_identification_samples(path: str | Path) -> Samples:
     if not setpoints:
         raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED velocity setpoints in MAV_FRAME_LOCAL_NED; "
                        "expected a log holding the controller's side of the link")
+    if with_accel:
+        raise LogError(f"{path}: {with_accel} of its velocity setpoints carry an acceleration target; identify "
+                       "fits the response to velocity setpoints alone (fly it with guidance.accel_feedforward: false)")
     target = Counter(row[4] for row in setpoints).most_common(1)[0][0]
 
     def source(streams: dict) -> list:

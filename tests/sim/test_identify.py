@@ -604,6 +604,23 @@ def test_a_log_without_setpoints_is_refused_in_one_line(tmp_path, capsys):
     assert code == 2 and len(err) == 1 and "SET_POSITION_TARGET_LOCAL_NED" in err[0]
 
 
+def test_a_log_whose_setpoints_carry_an_acceleration_target_is_refused_in_one_line(tmp_path, capsys):
+    from companion.io.logread import PacketEncoder
+    from companion.io.tlog import TlogWriter
+
+    path = tmp_path / "ff.tlog"
+    companion, autopilot = PacketEncoder(255, 190), PacketEncoder(1, 1)
+    with TlogWriter(path) as tlog:
+        for k in range(50):
+            t = 1.7e9 + 0.02 * k  # a tlog stamps its records with unix time
+            tlog.write(autopilot.local_position_ned_packet(20 * k, 0.1 * k, 0.0, -10.0, 5.0, 0.0, 0.0), t)
+            tlog.write(companion.velocity_setpoint_packet(1, 1, 0x0407, 1, 5.0, 0.0, 0.0, -0.2,
+                                                          afx_m_s2=0.0, afy_m_s2=1.0), t + 0.001)
+    code = main(["identify", str(path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "50 of its velocity setpoints carry an acceleration target" in err[0]
+
+
 def test_the_written_vehicle_block_is_accepted_by_a_mission_and_by_the_mock(tmp_path):
     from companion.cli.identify import vehicle_block_text
     from companion.mission import load_mission
