@@ -314,11 +314,7 @@ def compute_tick(
         elif config.output == "attitude":
             setpoint = _attitude(config, a_cmd, course, alt_m, output.s_proj_m)
         else:
-            base = course
-            if prev_course_cmd_rad is not None and math.isfinite(prev_course_cmd_rad):
-                lead = frames.angle_diff_rad(prev_course_cmd_rad, course)
-                lead = max(-config.max_course_lead_rad, min(config.max_course_lead_rad, lead))
-                base = frames.wrap_pi(course + lead)
+            base = _led_course(config, course, prev_course_cmd_rad)
             speed, hold = _targets(config, output.s_proj_m)
             setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _compensated(drift_ned),
                                          config.accel_ff_max_m_s2)
@@ -331,6 +327,17 @@ def compute_tick(
                         yaw_ned_rad=math.nan if yaw_ned_rad is None else float(yaw_ned_rad),
                         rate_hz=float(config.rate_hz), drift_n_m_s=drift_ned[0], drift_e_m_s=drift_ned[1],
                         drift_tc_s=float(config.drift_tc_s))
+
+
+def _led_course(config: TickConfig, course_rad: float, prev_course_cmd_rad: float | None) -> float:
+    """The course the setpoint turns from: the commanded course carried from the previous tick,
+    kept within ``max_course_lead_rad`` of the measured one (module docstring); the measured one
+    when there is none (the first tick, after a hold)."""
+    if prev_course_cmd_rad is None or not math.isfinite(prev_course_cmd_rad):
+        return course_rad
+    lead = frames.angle_diff_rad(prev_course_cmd_rad, course_rad)
+    lead = max(-config.max_course_lead_rad, min(config.max_course_lead_rad, lead))
+    return frames.wrap_pi(course_rad + lead)
 
 
 def _compensated(drift_ned: tuple[float, float]) -> tuple[float, float]:

@@ -268,8 +268,7 @@ def write_synthetic_flight(
             else:
                 tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
                                                               sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
-                                                              sp.yaw_rate_ned_rad_s, 0, sp.afx_ned_m_s2,
-                                                              sp.afy_ned_m_s2), sent_at)
+                                                              sp.yaw_rate_ned_rad_s), sent_at)
             v.follow(sp)
         records = tlog.records
     return {"ticks": n_ticks, "records": records, "generate_s": time.perf_counter() - started}
