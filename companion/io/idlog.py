@@ -25,12 +25,12 @@ import numpy as np
 
 from companion.errors import LogError
 from companion.io.logread import MSG_ID, TlogReader
+from companion.io.setpoints import uses_accel_target
 from companion.sim.identify import Samples, resample
 
 MAV_FRAME_LOCAL_NED = 1
 MASK_IGNORE_VEL = 0b111000  # bits 3..5: vx, vy, vz ignored
 MASK_IGNORE_YAW_RATE = 1 << 11
-MASK_IGNORE_ACCEL = 0b111000000  # bits 6..8: afx, afy, afz (ArduCopter ignores all three if any is set)
 ENVELOPE_PERCENTILE = 2.0
 
 _IDS = {MSG_ID["SET_POSITION_TARGET_LOCAL_NED"], MSG_ID["LOCAL_POSITION_NED"], MSG_ID["ATTITUDE"]}
@@ -69,7 +69,7 @@ def read_identification_samples(path: str | Path) -> Samples:
                 continue
             yaw_rate = 0.0 if msg.type_mask & MASK_IGNORE_YAW_RATE else msg.yaw_rate
             setpoints.append((rec.time_s, msg.vx, msg.vy, yaw_rate, msg.target_system))
-            with_accel += not msg.type_mask & MASK_IGNORE_ACCEL and (msg.afx != 0.0 or msg.afy != 0.0)
+            with_accel += uses_accel_target(msg.type_mask) and (msg.afx != 0.0 or msg.afy != 0.0)
         elif kind == "LOCAL_POSITION_NED":
             lpn.setdefault((rec.src_system, rec.src_component), []).append(
                 (rec.time_s, msg.time_boot_ms * 1e-3, msg.vx, msg.vy, msg.x, msg.y))

@@ -71,6 +71,18 @@ TYPE_MASK_VELOCITY_YAW_RATE = (
 TYPE_MASK_VELOCITY_ACCEL_YAW_RATE = IGNORE_X | IGNORE_Y | IGNORE_Z | IGNORE_YAW
 MAV_FRAME_LOCAL_NED = 1
 
+
+def uses_accel_target(type_mask: int) -> bool:
+    """Whether a SET_POSITION_TARGET_LOCAL_NED with this mask carries an acceleration target as
+    ArduCopter reads it: all three acceleration bits clear (any one set ignores the group).
+
+    >>> uses_accel_target(TYPE_MASK_VELOCITY_ACCEL_YAW_RATE), uses_accel_target(TYPE_MASK_VELOCITY_YAW_RATE)
+    (True, False)
+    >>> uses_accel_target(TYPE_MASK_VELOCITY_ACCEL_YAW_RATE | IGNORE_AZ)
+    False
+    """
+    return not type_mask & (IGNORE_AX | IGNORE_AY | IGNORE_AZ)
+
 # SET_ATTITUDE_TARGET type_mask bits.
 ATT_IGNORE_ROLL_RATE = 1
 ATT_IGNORE_PITCH_RATE = 2

@@ -43,7 +43,7 @@ from companion.errors import LogError
 from companion.guidance.types import GuidanceLaw
 from companion.io.logread import LogWarning
 from companion.io.tlog import MISSION_SUFFIX, mission_path_beside
-from companion.io.setpoints import IGNORE_AX, AttitudeSetpoint, VelocitySetpoint
+from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint, uses_accel_target
 from companion.loop.driver import TickDriver, make_guidance
 from companion.loop.limits import accel_feedforward_limit_m_s2, limit_from_params, mission_with_limit
 from companion.loop.tick import DEFAULT_STALE_S, TickConfig
@@ -172,7 +172,7 @@ def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
 def flight_sent_accel(flight: LoggedFlight) -> bool:
     """Whether the flight's velocity setpoints carried the acceleration target (their mask uses it):
     the log, not the mission (whose default may have changed since), says what was sent."""
-    return any(type(tk.setpoint) is LoggedSetpoint and not tk.setpoint.type_mask & IGNORE_AX
+    return any(type(tk.setpoint) is LoggedSetpoint and uses_accel_target(tk.setpoint.type_mask)
                for tk in flight.ticks)
 
 
