@@ -587,6 +587,10 @@ MONITOR_ERR_TC_S = 4.0  # averaging time of each candidate's squared prediction 
 MONITOR_WARMUP_S = 3.0  # no switching before this much flight
 MONITOR_SWITCH_RATIO = 0.6  # a candidate replaces the model in use when its error is below this share
 MONITOR_FALLBACK_SHARE = 0.5  # unexplained share of the observed acceleration that drops the plan
+# A candidate limit below the stated one may be switched to only once the commands have stayed
+# beyond it this long (the longest such stretch, forgotten over MONITOR_ERR_TC_S): a shorter
+# excursion a lag or a dead time explains as well (ModelMonitor).
+MONITOR_LIMIT_EVIDENCE_S = 1.0
 
 
 class ModelMonitor:
@@ -603,6 +607,15 @@ class ModelMonitor:
     candidates restart from the observation. ``unexplained`` is the error of the model in use over the observed acceleration's
     mean square: above :data:`MONITOR_FALLBACK_SHARE` no candidate stands for the vehicle and the
     law flies its feedback core alone (no plan). Pure arithmetic on the inputs: deterministic.
+
+    A candidate whose limit is below the stated one is switched to only on evidence of that limit:
+    the commands must have stayed beyond it for :data:`MONITOR_LIMIT_EVIDENCE_S` (the longest such
+    stretch, forgotten over :data:`MONITOR_ERR_TC_S`). A turn's entry, commanded at the limit for
+    a few tenths of a second, is flown late by a vehicle with a dead time the candidates do not
+    have, and a lower limit explains that lateness as well as a longer lag does. Real ArduCopter
+    flights took half the limit so on a straight (the error of a take-off transient 25 s before)
+    or in a turn's first 0.2 s, and the plan, re-made for it mid-turn, swung the vehicle 0.44 m out
+    (docs/real_firmware.md).
 
     The law plans with the limit of the model in use but holds its command at the vehicle's
     stated limit: a command held at a model limit below the vehicle's would fly every candidate
@@ -622,6 +635,9 @@ class ModelMonitor:
         self.limits = grid_lim.ravel()
         self.current = int(MONITOR_LAG_FACTORS.index(1.0) * len(limits))  # nominal lag, full limit
         n = self.lags.size
+        self._limited = self.limits < float(np.max(self.limits))  # the candidates that need evidence
+        self._beyond_s = np.zeros(n)  # how long the commands have now stayed beyond each limit
+        self._evidence_s = np.zeros(n)  # the longest such stretch, forgotten over MONITOR_ERR_TC_S
         self._a = np.zeros(n)
         self._a_f = np.zeros(n)
         self._err = np.zeros(n)
@@ -656,6 +672,7 @@ class ModelMonitor:
             # Ticks were skipped or coasted: the vehicle flew setpoints this law did not choose.
             # Compare nothing over the gap; restart every candidate from what is observed.
             self._a[:] = observed
+            self._beyond_s[:] = 0.0
             self._a_f[:] = observed
             self._obs_f = observed
             return
@@ -664,6 +681,8 @@ class ModelMonitor:
         with np.errstate(divide="ignore", over="ignore"):
             alpha = np.where(self.lags > 0.0, 1.0 - np.exp(-dt / np.maximum(self.lags, 1e-9)), 1.0)
         target = np.clip(last_cmd_m_s2, -self.limits, self.limits)
+        self._beyond_s = np.where(abs(last_cmd_m_s2) > self.limits, self._beyond_s + dt, 0.0)
+        self._evidence_s = np.maximum(self._evidence_s * (1.0 - gamma), self._beyond_s)
         # the course change over the tick is the mean of the acceleration over it: compare means
         a_mean = self._a + (target - self._a) * alpha * 0.5
         self._a += (target - self._a) * alpha
@@ -673,7 +692,8 @@ class ModelMonitor:
         self._obs_ms += (self._obs_f ** 2 - self._obs_ms) * gamma
         if t_s - self._t0 < MONITOR_WARMUP_S:
             return
-        best = int(np.argmin(self._err))
+        unproven = self._limited & (self._evidence_s < MONITOR_LIMIT_EVIDENCE_S)
+        best = int(np.argmin(np.where(unproven, np.inf, self._err)))
         if self._err[best] < MONITOR_SWITCH_RATIO * self._err[self.current]:
             self.current = best
         self.unexplained = float(self._err[self.current] / (self._obs_ms + 0.05))
