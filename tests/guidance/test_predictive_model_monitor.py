@@ -9,7 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from companion.guidance.predictive import MONITOR_A_MAX_FACTORS, MONITOR_LAG_FACTORS, ModelMonitor
+from companion.guidance.predictive import (
+    MONITOR_A_MAX_FACTORS,
+    MONITOR_LAG_FACTORS,
+    ModelMonitor,
+)
 from companion.guidance.two_phase import TwoPhaseGuidance
 from companion.guidance.types import VehicleState
 from companion.mission import load_mission
@@ -18,17 +22,25 @@ from companion.sim.simulator import LagModel, simulate
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
 
 
-def fly_monitor(true_lag_s, true_a_max, nominal_lag_s=0.3, nominal_a_max=5.0, seconds=20.0, dt=0.02):
-    """Feed the monitor a square wave of commands and the course a vehicle with the true first-order
-    lag and limit flies from them (exact discretisation, independent of the monitor's code)."""
+def square_wave(t_s: float) -> float:
+    return 4.0 if (t_s % 4.0) < 2.0 else -4.0
+
+
+def fly_monitor(true_lag_s, true_a_max, nominal_lag_s=0.3, nominal_a_max=5.0, seconds=20.0, dt=0.02,
+                commands=square_wave, true_delay_s=0.0, seen=None):
+    """Feed the monitor ``commands(t)`` (default a square wave) and the course a vehicle with the
+    true dead time, first-order lag and limit flies from them (exact discretisation, independent
+    of the monitor's code). ``seen``: a set that collects every limit the monitor used."""
     monitor = ModelMonitor(nominal_lag_s, nominal_a_max)
     speed, course, a = 5.0, 0.0, 0.0
-    cmd = 0.0
+    sent = [0.0] * (int(round(true_delay_s / dt)) + 1)  # the commands, oldest first
     for i in range(int(seconds / dt)):
         t = i * dt
-        monitor.update(t, course, speed, cmd)
-        cmd = 4.0 if (t % 4.0) < 2.0 else -4.0
-        target = max(-true_a_max, min(true_a_max, cmd))
+        monitor.update(t, course, speed, sent[-1])
+        if seen is not None:
+            seen.add(monitor.a_max_m_s2)
+        sent = sent[1:] + [commands(t)]
+        target = max(-true_a_max, min(true_a_max, sent[0]))
         k = math.exp(-dt / true_lag_s)
         a_mean = target + (a - target) * true_lag_s / dt * (1.0 - k)  # mean over the tick
         course += a_mean / speed * dt
@@ -55,6 +67,46 @@ def test_from_an_ideal_nominal_model_the_monitor_finds_an_arducopter_like_lag():
     # 0.63 s of dead time plus lag (docs/vehicle_model.md): a candidate must reach that far.
     m = fly_monitor(0.6, 2.5, nominal_lag_s=0.0, nominal_a_max=2.5)
     assert m.lag_s == pytest.approx(0.6)
+    assert not m.fallback
+
+
+def turn_entries(t_s: float) -> float:
+    """Every 6 s a turn's entry: 0.4 s at the 2.5 m/s^2 limit, then 2 s at 1.7 m/s^2 (a 15 m arc
+    at 5 m/s), then straight."""
+    phase = t_s % 6.0
+    return 2.5 if 3.0 <= phase < 3.4 else (1.7 if 3.4 <= phase < 5.4 else 0.0)
+
+
+@pytest.mark.parametrize("delay_s", [0.1, 0.15, 0.2, 0.3])
+def test_turn_entries_flown_late_by_a_dead_time_do_not_lower_the_limit(delay_s, monkeypatch):
+    # A vehicle that flies every command up to the stated 2.5 m/s^2, after a dead time the
+    # candidates (pure lags) do not have: ArduCopter with the acceleration target answers after
+    # 0.1-0.3 s. Each entry at the limit lasts 0.4 s; a lower limit explains its late start as
+    # well as a longer lag, but nothing was asked beyond 1.25 or 1.75 m/s^2 long enough to show it.
+    seen: set[float] = set()
+    m = fly_monitor(0.1, 2.5, nominal_lag_s=0.0, nominal_a_max=2.5, seconds=40.0, commands=turn_entries,
+                    true_delay_s=delay_s, seen=seen)
+    assert seen == {2.5}
+    assert m.lag_s >= 0.1 and not m.fallback
+    # Without the evidence the same flight takes a lower limit at some point.
+    monkeypatch.setattr("companion.guidance.predictive.MONITOR_LIMIT_EVIDENCE_S", 0.0)
+    seen.clear()
+    fly_monitor(0.1, 2.5, nominal_lag_s=0.0, nominal_a_max=2.5, seconds=40.0, commands=turn_entries,
+                true_delay_s=delay_s, seen=seen)
+    assert min(seen) < 2.5
+
+
+def test_a_limit_the_commands_stay_beyond_for_a_second_and_a_half_is_taken():
+    # The other side of the rule: stretches of 1.5 s at +-4 m/s^2 (0.5 s at 0 between them)
+    # against a vehicle that flies 2.5 after a 0.15 s dead time are evidence, and the monitor
+    # takes the 2.5 candidate of a nominal 5 (with stretches shorter than the evidence asked, it
+    # keeps 5 and finds a longer lag instead).
+    def stretches(t_s: float) -> float:
+        phase = t_s % 4.0
+        return 4.0 if phase < 1.5 else (-4.0 if 2.0 <= phase < 3.5 else 0.0)
+
+    m = fly_monitor(0.3, 2.5, nominal_lag_s=0.3, nominal_a_max=5.0, commands=stretches, true_delay_s=0.15)
+    assert m.a_max_m_s2 == pytest.approx(2.5)
     assert not m.fallback
 
 
