@@ -15,7 +15,9 @@ Rules modelled (see ``docs/sitl_mock.md`` for the sources):
 * ArduPilot GUIDED velocity and acceleration targets expire after ``GUID_TIMEOUT``: the vehicle
   brakes to a stop and stays in GUIDED. Position targets do not expire. ArduCopter ignores
   guided targets on the ground until ``MAV_CMD_NAV_TAKEOFF``, and reads the position bits of
-  ``type_mask`` as one group (all used or all ignored), as do the velocity and acceleration bits.
+  ``type_mask`` as one group, ignored when any of them is set, as it does the velocity and
+  acceleration bits; a combination GUIDED cannot fly makes it brake to a stop. ArduPilot Rover
+  reads the groups the same way and ignores a target whose acceleration is not ignored.
 * PX4 reads each axis of ``type_mask`` on its own.
 * ArduPlane ignores SET_POSITION_TARGET_LOCAL_NED (velocity) and turns from SET_ATTITUDE_TARGET
   (roll) in GUIDED; the override expires after ``GUIDED_TIMEOUT`` and the plane loiters.
@@ -406,12 +408,18 @@ class FlightLogic:
         ign_vel = [bool(type_mask & b) for b in MASK_VEL]
         ign_acc = [bool(type_mask & b) for b in MASK_ACC]
         if not self.pers.is_px4:
-            # ArduPilot reads each group as a whole: used unless all three bits are set.
-            ign_pos = [all(ign_pos)] * 3
-            ign_vel = [all(ign_vel)] * 3
-            ign_acc = [all(ign_acc)] * 3
+            # ArduPilot reads each group as a whole, ignored when any of its bits is set
+            # (GCS_MAVLink_Copter.cpp / GCS_MAVLink_Rover.cpp: `bool pos_ignore = type_mask & ...`).
+            ign_pos = [any(ign_pos)] * 3
+            ign_vel = [any(ign_vel)] * 3
+            ign_acc = [any(ign_acc)] * 3
             use_p, use_v, use_a = not ign_pos[0], not ign_vel[0], not ign_acc[0]
+            if self.pers.vehicle == "rover" and use_a:
+                self._say(SEVERITY_INFO, "Ignoring SET_POSITION_TARGET_LOCAL_NED; set ACC_IGNORE in mask")
+                return "acc_not_ignored"
             if not ((use_p and use_v) or (use_p and not use_a) or (not use_p and (use_v or use_a))):
+                if self.mode.behaviour == "guided":  # ModeGuided::init(true): brake to a stop
+                    self.setpoint = self._brake_setpoint()
                 return "unsupported_type_mask"
         if self.pers.vehicle == "plane":
             # PX4 fixed-wing offboard flies to positions; it does not take velocities.
@@ -457,6 +465,13 @@ class FlightLogic:
             yaw_rad=float(yaw) if use_yaw else None, yaw_rate_rad_s=float(yaw_rate) if use_yaw_rate else None,
             hold_ned_m=self._hold_for_new_setpoint(), received_s=now, expires=expires)
         return None
+
+    def _brake_setpoint(self) -> Setpoint:
+        """ArduPilot GUIDED braking to a stop (a zero velocity target that does not expire)."""
+        s = self.model.state
+        return Setpoint(pos_ned_m=(None, None, None), vel_ned_m_s=(0.0, 0.0, 0.0), acc_ned_m_s2=(None, None, None),
+                        yaw_rad=None, yaw_rate_rad_s=0.0, hold_ned_m=tuple(s.pos_ned_m), received_s=self.t_s,
+                        expires=False)
 
     def _hold_for_new_setpoint(self) -> tuple[float, float, float]:
         """Hold point for axes a setpoint leaves free: the previous one's, else the current position."""
@@ -504,10 +519,7 @@ class FlightLogic:
         sp = self.setpoint
         if sp is not None and sp.expires and now - sp.received_s > timeout:
             # GUID_TIMEOUT: brake to a stop and stay in GUIDED.
-            s = self.model.state
-            self.setpoint = Setpoint(pos_ned_m=(None, None, None), vel_ned_m_s=(0.0, 0.0, 0.0),
-                                     acc_ned_m_s2=(None, None, None), yaw_rad=None, yaw_rate_rad_s=0.0,
-                                     hold_ned_m=tuple(s.pos_ned_m), received_s=now, expires=False)
+            self.setpoint = self._brake_setpoint()
         if self._attitude_roll_rad is not None and now - self._attitude_s > timeout:
             self._attitude_roll_rad = None
             self._loiter_center_ned_m = (self.model.state.pos_ned_m[0], self.model.state.pos_ned_m[1])

@@ -20,8 +20,8 @@ turn left). Two output adapters turn it into what an autopilot flies:
   ``max_climb_m_s``, not by a z position. A mission with an altitude profile adds the profile's
   climb rate ``V(s) dh/ds`` as feed-forward and clamps to its climb and sink limits
   (:func:`profile_targets`). ArduCopter reads the three position bits of
-  ``type_mask`` as one group: a z position with xy ignored makes it treat x, y as used too (it
-  would fly to x = y = 0). Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
+  ``type_mask`` as one group, ignored when any of them is set: a z position beside ignored x, y
+  would not be flown at all. Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
   and yaw ignored; vx, vy, vz, yaw_rate used), which PX4 and ArduPilot both accept.
 * for a copter with ``guidance.accel_feedforward`` (by default on ArduPilot, except with
   ``predictive``; companion.loop.limits.accel_feedforward_max), the lateral command
@@ -32,7 +32,7 @@ turn left). Two output adapters turn it into what an autopilot flies:
   target on by it until the next setpoint; PX4 adds it to its velocity loop's output as
   feed-forward. Either way the autopilot turns with the command instead of after its velocity
   error has grown (docs/real_firmware.md, "The command as acceleration feed-forward"). ArduCopter
-  reads the three acceleration bits as one group too, so all three are used.
+  reads the three acceleration bits as one group too (any set: none used), so all three are used.
 
 **Attitude** (fixed wing): ``SET_ATTITUDE_TARGET`` with the coordinated-turn bank angle
 ``phi = atan(a_cmd / g)`` limited to ``max_bank_deg``. In NED a positive roll is right wing down,

@@ -22,7 +22,8 @@ def test_flying_east_without_turn_commands_pure_east_velocity():
 
 
 def test_type_mask_ignores_all_three_position_bits_and_uses_vz():
-    # ArduCopter treats x, y, z as one group: all three must be ignored when flying velocity.
+    # ArduCopter treats x, y, z as one group (ignored when any bit is set), PX4 each axis: all three
+    # ignored, so that both fly the velocity and neither a position.
     m = sp.TYPE_MASK_VELOCITY_YAW_RATE
     assert m & 0b111 == 0b111
     assert m & (8 | 16 | 32) == 0  # vx, vy, vz used

@@ -93,15 +93,46 @@ def test_ardupilot_position_targets_do_not_time_out():
     assert f.model.state.pos_ned_m[0] == pytest.approx(20.0, abs=0.1)
 
 
-def test_arducopter_reads_position_bits_as_a_group_so_a_zero_z_is_flown():
-    # x and y used, z marked ignored: ArduCopter still uses the whole position group, z = 0 (ground).
+def test_arducopter_ignores_a_group_when_any_of_its_bits_is_set_and_brakes_on_nothing_left():
+    # x and y used, z marked ignored: ArduCopter master ignores the whole position group
+    # (`bool pos_ignore = type_mask & MASK_POS_IGNORE`); with velocity and acceleration ignored as
+    # well nothing is left, and GUIDED re-initialises: it brakes to a stop where it is.
     f = make("ardupilot")
     f.set_mode(f.pers.mode_named("GUIDED"))
+    advance(f, 1.0, vel_setpoint(2.0, 0.0))
     mask_xy_only = 0b0000_1111_1111_1100
-    f.set_position_target(fl.MAV_FRAME_LOCAL_NED, mask_xy_only, (5.0, 0.0, 0.0), (0, 0, 0), (0, 0, 0), 0.0, 0.0)
-    assert f.setpoint.pos_ned_m == (5.0, 0.0, 0.0)
+    assert f.set_position_target(fl.MAV_FRAME_LOCAL_NED, mask_xy_only, (30.0, 0.0, 0.0), (0, 0, 0), (0, 0, 0),
+                                 0.0, 0.0) == "unsupported_type_mask"
+    x0 = f.model.state.pos_ned_m[0]
     advance(f, 12.0)
-    assert f.model.state.pos_ned_m[2] == pytest.approx(0.0, abs=0.01)  # it descended to z = 0
+    s = f.model.state
+    assert math.hypot(*s.vel_ned_m_s[:2]) < 0.05  # stopped, short of x = 30 and not sent to 0
+    assert x0 < s.pos_ned_m[0] < x0 + 3.0
+    assert s.pos_ned_m[2] == pytest.approx(-10.0, abs=0.1)  # altitude kept, not z = 0
+
+
+def test_arducopter_ignores_the_whole_acceleration_group_when_one_of_its_bits_is_set():
+    f = make("ardupilot")
+    f.set_mode(f.pers.mode_named("GUIDED"))
+    vel_accel_but_az = 0b0000_0101_0000_0111  # position, az and yaw ignored
+    assert f.set_position_target(fl.MAV_FRAME_LOCAL_NED, vel_accel_but_az, (0, 0, 0), (1.0, 0.0, 0.0),
+                                 (0.0, 2.0, 0.0), 0.0, 0.0) is None
+    assert f.setpoint.acc_ned_m_s2 == (None, None, None)
+    assert f.setpoint.vel_ned_m_s == (1.0, 0.0, 0.0)
+    assert f.set_position_target(fl.MAV_FRAME_LOCAL_NED, 0x0407, (0, 0, 0), (1.0, 0.0, 0.0), (0.0, 2.0, 0.0),
+                                 0.0, 0.0) is None
+    assert f.setpoint.acc_ned_m_s2 == (0.0, 2.0, 0.0)
+
+
+def test_ardupilot_rover_ignores_a_target_whose_acceleration_is_not_ignored():
+    f = make("ardupilot", vehicle="rover", airborne=False)
+    f.set_mode(f.pers.mode_named("GUIDED"))
+    before = f.setpoint
+    assert f.set_position_target(fl.MAV_FRAME_LOCAL_NED, 0x0407, (0, 0, 0), (1.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                                 0.0, 0.0) == "acc_not_ignored"
+    assert f.setpoint is before
+    assert f.events[-1] == (fl.SEVERITY_INFO, "Ignoring SET_POSITION_TARGET_LOCAL_NED; set ACC_IGNORE in mask"[:50])
+    assert f.set_position_target(*vel_setpoint(1.0, 0.0)) is None
 
 
 def test_px4_reads_each_axis_of_type_mask_so_an_ignored_z_holds_altitude():
