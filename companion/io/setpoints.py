@@ -23,8 +23,8 @@ turn left). Two output adapters turn it into what an autopilot flies:
   ``type_mask`` as one group, ignored when any of them is set: a z position beside ignored x, y
   would not be flown at all. Using ``vz`` keeps one mask, ``0x05C7`` (1479: position, acceleration
   and yaw ignored; vx, vy, vz, yaw_rate used), which PX4 and ArduPilot both accept.
-* for a copter with ``guidance.accel_feedforward`` (by default on ArduPilot, except with
-  ``predictive``; companion.loop.limits.accel_feedforward_max), the lateral command
+* for a copter with ``guidance.accel_feedforward`` (by default on ArduPilot;
+  companion.loop.limits.accel_feedforward_max), the lateral command
   itself as the **acceleration target** ``(afx, afy)``: ``a_cmd`` (limited to the flight's
   acceleration limit) along the left normal of the commanded course, ``afz = 0``; mask ``0x0407``
   (1031: position and yaw ignored). ArduCopter GUIDED adds it to its velocity correction

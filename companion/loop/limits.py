@@ -97,10 +97,6 @@ def flight_limit_m_s2(mission: Mission) -> float:
 #: (docs/real_firmware.md, "The command as acceleration feed-forward"; PX4's response to it is not
 #: yet modelled).
 ACCEL_FEEDFORWARD_AUTOPILOTS = ("ardupilot",)
-#: Methods that send it only when the mission says so: ``predictive`` plans with a model of the
-#: vehicle's response learnt without it, and on the real ArduCopter its plan's jumps at a turn's
-#: entry, flown at once, swung the vehicle out (docs/real_firmware.md, same section).
-ACCEL_FEEDFORWARD_OPT_IN_METHODS = ("predictive",)
 
 
 def accel_feedforward_max(mission: Mission, autopilot: str | None, vehicle: str = "copter") -> float:
@@ -108,9 +104,8 @@ def accel_feedforward_max(mission: Mission, autopilot: str | None, vehicle: str 
     ``"ardupilot"``) sends its lateral command as the setpoint's acceleration target (m/s^2,
     :mod:`companion.io.setpoints`): 0 when it does not (a ``vehicle`` other than a copter: ArduPilot
     Rover ignores a setpoint that carries one, ``GCS_MAVLINK_Rover``'s "set ACC_IGNORE in mask";
-    ``guidance.accel_feedforward: false``; or absent and either the autopilot is not in
-    :data:`ACCEL_FEEDFORWARD_AUTOPILOTS` or the method is in
-    :data:`ACCEL_FEEDFORWARD_OPT_IN_METHODS`), else the flight's limit (:func:`flight_limit_m_s2`),
+    ``guidance.accel_feedforward: false``; or absent and the autopilot not in
+    :data:`ACCEL_FEEDFORWARD_AUTOPILOTS`), else the flight's limit (:func:`flight_limit_m_s2`),
     or ``g`` when none is known.
 
     >>> from companion.mission.loader import parse_mission
@@ -122,7 +117,7 @@ def accel_feedforward_max(mission: Mission, autopilot: str | None, vehicle: str 
     >>> accel_feedforward_max(line("{method: corrector}"), "px4")
     0.0
     >>> accel_feedforward_max(line("{method: predictive, a_max_m_s2: 2.5}"), "ardupilot")
-    0.0
+    2.5
     >>> round(accel_feedforward_max(line("{accel_feedforward: true}"), "px4"), 5)  # no limit known: g
     9.80665
     >>> accel_feedforward_max(line("{accel_feedforward: false}"), "ardupilot")
@@ -134,8 +129,7 @@ def accel_feedforward_max(mission: Mission, autopilot: str | None, vehicle: str 
         return 0.0
     on = mission.accel_feedforward
     if on is None:
-        on = (autopilot in ACCEL_FEEDFORWARD_AUTOPILOTS
-              and mission.guidance.method not in ACCEL_FEEDFORWARD_OPT_IN_METHODS)
+        on = autopilot in ACCEL_FEEDFORWARD_AUTOPILOTS
     return accel_feedforward_limit_m_s2(mission) if on else 0.0
 
 

@@ -365,8 +365,7 @@ MISSION = Object(
                     "accel_feedforward": Field(Boolean(), "copters (never rovers): send "
                                                "the lateral command as the setpoint's acceleration "
                                                "target too, so the autopilot turns with it (absent: "
-                                               "on for ArduPilot except with predictive, off for "
-                                               "PX4; docs/flying.md)"),
+                                               "on for ArduPilot, off for PX4; docs/flying.md)"),
                 },
             ),
             "guidance tuning", default={}),
