@@ -418,7 +418,8 @@ class FlightLogic:
                 self._say(SEVERITY_INFO, "Ignoring SET_POSITION_TARGET_LOCAL_NED; set ACC_IGNORE in mask")
                 return "acc_not_ignored"
             if not ((use_p and use_v) or (use_p and not use_a) or (not use_p and (use_v or use_a))):
-                if self.mode.behaviour == "guided":  # ModeGuided::init(true): brake to a stop
+                if self.pers.vehicle == "copter" and self.mode.behaviour == "guided":
+                    # ArduCopter's ModeGuided::init(true): brake to a stop (Rover does nothing)
                     self.setpoint = self._brake_setpoint()
                 return "unsupported_type_mask"
         if self.pers.vehicle == "plane":
