@@ -100,7 +100,7 @@ def test_a_flight_on_the_mock_reads_wpnav_accel_flies_within_it_and_replays(tmp_
     # and it slows for the circle: V = sqrt(0.8 * 2.5 * 6) on the whole of it
     assert f"slower in the path's turns: down to {math.sqrt(12.0):.2f} m/s over 100 % of the path" in fly.stderr
     assert json.loads(fly.stdout)["a_max_m_s2"] <= 2.5 + 1e-9
-    # Asked for (predictive sends none by default): the command also goes as the acceleration
+    # Asked for by the mission (the log names the key): the command also goes as the acceleration
     # target, within the same limit, and the replay below finds that from the log.
     assert "acceleration feed-forward: the setpoints carry the command up to 2.5 m/s^2 (guidance.accel_feedforward)" in fly.stderr
     sent = [m for m in _messages(tlog) if m.get_type() == "SET_POSITION_TARGET_LOCAL_NED" and m.type_mask == 1031]
