@@ -193,6 +193,7 @@ def velocity_setpoint(
     hold: AltitudeHold,
     drift_ned_m_s: tuple[float, float] = (0.0, 0.0),
     accel_ff_max_m_s2: float = 0.0,
+    accel_ff_share: float = 1.0,
 ) -> VelocitySetpoint:
     """Velocity + yaw-rate setpoint for a lateral acceleration command.
 
@@ -210,6 +211,11 @@ def velocity_setpoint(
     accel_ff_max_m_s2 : > 0: send the command, limited to this, as the acceleration target along
         the left normal of the commanded course (mask ``TYPE_MASK_VELOCITY_ACCEL_YAW_RATE``);
         0: no acceleration target (mask ``TYPE_MASK_VELOCITY_YAW_RATE``).
+    accel_ff_share : the share of the command sent as the acceleration target, in [0, 1]: 1 for a
+        vehicle flying at ``speed_m_s``; its ground speed over ``speed_m_s`` while it gathers speed
+        (``companion.loop.tick``). The setpoint turns at ``omega = a_cmd / V``; a vehicle moving at
+        ``v`` turns with it on ``v * omega``, and an autopilot that adds the target to its own
+        trajectory (ArduCopter) pushes a hovering copter sideways with the rest.
 
     Examples
     --------
@@ -238,7 +244,7 @@ def velocity_setpoint(
         vz_ned_m_s=hold.vz_ned_m_s(alt_m),
         yaw_rate_ned_rad_s=frames.yaw_rate_ned_from_enu(omega_enu_rad_s),
         course_cmd_enu_rad=course_cmd,
-        **_feed_forward(a_cmd_m_s2, course_cmd, accel_ff_max_m_s2),
+        **_feed_forward(a_cmd_m_s2 * min(1.0, max(0.0, accel_ff_share)), course_cmd, accel_ff_max_m_s2),
     )
 
 

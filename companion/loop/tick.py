@@ -20,7 +20,8 @@ Rules applied here (and therefore identically in flight and in replay):
   lateral error of 0.1 m/s is 6 deg at 1 m/s; every law reads it as if flown at V; a hovering
   PX4 SIH reported 0.5-0.65 m/s while its position moved by centimetres). On the mock's
   ArduCopter, taking off along the racetrack, ``predictive`` answered those swings with
-  +-1.8 m/s^2 for 5 s (docs/flying.md);
+  +-1.8 m/s^2 for 5 s (docs/flying.md). Such a vehicle is sent the acceleration target scaled by
+  its ground speed over V: its velocity turns with the setpoint on ``|v| a_cmd / V``;
 * the speed handed to the guidance is the mission's ``speed_m_s`` (the commanded ground speed V);
   a mission with a profile (``TickConfig.profile``) commands ``V(s)`` and the altitude hold on
   ``h(s)`` with the feed-forward climb ``V(s) dh/ds`` at the tick's projection ``s``
@@ -317,7 +318,7 @@ def compute_tick(
             base = _led_course(config, course, prev_course_cmd_rad)
             speed, hold = _targets(config, output.s_proj_m)
             setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _compensated(drift_ned),
-                                         config.accel_ff_max_m_s2)
+                                         config.accel_ff_max_m_s2, _feed_forward_share(config, sample, speed))
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
@@ -338,6 +339,17 @@ def _led_course(config: TickConfig, course_rad: float, prev_course_cmd_rad: floa
     lead = frames.angle_diff_rad(prev_course_cmd_rad, course_rad)
     lead = max(-config.max_course_lead_rad, min(config.max_course_lead_rad, lead))
     return frames.wrap_pi(course_rad + lead)
+
+
+def _feed_forward_share(config: TickConfig, sample: PositionSample, speed_m_s: float) -> float:
+    """The share of the command sent as the acceleration target (``velocity_setpoint``): the
+    measured ground speed over ``speed_m_s`` while the vehicle gathers speed
+    (:meth:`TickConfig.gathering`), else 1. A copter leaving the hover turns its velocity with the
+    setpoint on ``|v| a_cmd / V``; ArduCopter adds the whole target to a trajectory it starts from
+    the hover's velocity, and the copter slid 7 cm sideways in its first second (docs/flying.md)."""
+    if not config.gathering(sample):
+        return 1.0
+    return min(1.0, math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) / speed_m_s)
 
 
 def _compensated(drift_ned: tuple[float, float]) -> tuple[float, float]:
@@ -406,7 +418,8 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     base = course_cmd_rad if math.isfinite(course_cmd_rad) else last.course_rad
     speed, hold = _targets(config, last.output.s_proj_m)
     return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold,
-                             _compensated((last.drift_n_m_s, last.drift_e_m_s)), config.accel_ff_max_m_s2)
+                             _compensated((last.drift_n_m_s, last.drift_e_m_s)), config.accel_ff_max_m_s2,
+                             _feed_forward_share(config, sample, speed))
 
 
 def _float32(x: float) -> float:
