@@ -162,3 +162,22 @@ def test_below_half_the_speed_the_course_is_the_commanded_one(vx, vy, gathering)
     compute_tick(g0, 0, 0.0, sample(vx=vx, vy=vy), 0.0, CFG)
     assert g0.calls[0][1].course_rad == pytest.approx(-math.pi / 2 if gathering else measured)
     assert g0.calls[1][1].course_rad == pytest.approx(measured)
+
+
+@pytest.mark.parametrize("vx, vy, share", [(0.0, 0.0, 0.0), (0.6, 0.8, 0.2), (0.0, 2.4, 0.48), (0.0, 2.5, 1.0),
+                                           (0.0, 4.0, 1.0), (0.0, 6.0, 1.0)])
+def test_the_acceleration_target_of_a_copter_gathering_speed_is_its_speed_over_v(vx, vy, share):
+    """The setpoint turns at a / V = 2 / 5 rad/s; a copter moving at |v| turns with it on |v| a / V,
+    so while it gathers speed (below V / 2 = 2.5 m/s) the target sent is 2 |v| / 5 m/s^2 (hovering:
+    none), and from V / 2 on the whole command (faster than V too: the target is the setpoint's
+    turn). The direction is the left normal of the commanded course, east + 0.008 rad: north."""
+    cfg = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0, accel_ff_max_m_s2=2.5)
+    r = compute_tick(ConstantTurn(a=2.0), 1, 0.02, sample(vx=vx, vy=vy), 0.0, cfg, prev_course_cmd_rad=0.0)
+    c = 2.0 / 5.0 * 0.02
+    assert r.setpoint.afx_ned_m_s2 == pytest.approx(2.0 * share * math.cos(c), abs=1e-12)
+    assert r.setpoint.afy_ned_m_s2 == pytest.approx(-2.0 * share * math.sin(c), abs=1e-12)
+    # the velocity setpoint itself is not scaled: V along the commanded course
+    assert math.hypot(r.setpoint.vx_ned_m_s, r.setpoint.vy_ned_m_s) == pytest.approx(5.0)
+    # a coast from that tick sends the same share
+    sp = coast_setpoint(r, sample(vx=vx, vy=vy), 0.02, cfg, r.course_cmd_rad)
+    assert math.hypot(sp.afx_ned_m_s2, sp.afy_ned_m_s2) == pytest.approx(2.0 * share, abs=1e-12)
