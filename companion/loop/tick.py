@@ -346,7 +346,7 @@ def _feed_forward_share(config: TickConfig, sample: PositionSample, speed_m_s: f
     measured ground speed over ``speed_m_s`` while the vehicle gathers speed
     (:meth:`TickConfig.gathering`), else 1. A copter leaving the hover turns its velocity with the
     setpoint on ``|v| a_cmd / V``; ArduCopter adds the whole target to a trajectory it starts from
-    the hover's velocity, and the copter slid 7 cm sideways in its first second (docs/flying.md)."""
+    the hover's velocity, and the real one slid 7-10 cm sideways in its first 1.5 s (docs/flying.md)."""
     if not config.gathering(sample):
         return 1.0
     return min(1.0, math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) / speed_m_s)
