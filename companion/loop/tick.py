@@ -219,11 +219,10 @@ _tick_result = frozen_maker(TickResult)
 _vehicle_state = frozen_maker(VehicleState)
 
 
-def _gathering_course(config: TickConfig, sample: PositionSample, yaw_ned_rad: float | None,
-                      prev_course_cmd_rad: float | None) -> float | None:
+def _gathering_course(gathering: bool, yaw_ned_rad: float | None, prev_course_cmd_rad: float | None) -> float | None:
     """The course of a vehicle still gathering speed (:meth:`TickConfig.gathering`): the commanded
     one, else (the first tick) the yaw; None when it is not gathering speed, or neither is known."""
-    if not config.gathering(sample):
+    if not gathering:
         return None
     if prev_course_cmd_rad is not None and math.isfinite(prev_course_cmd_rad):
         return prev_course_cmd_rad
@@ -300,7 +299,8 @@ def compute_tick(
         if drift is not None and config.compensates_drift:
             drift_ned = drift.update(sample.time_s, sample.x_ned_m, sample.y_ned_m,
                                      sample.vx_ned_m_s, sample.vy_ned_m_s)
-        course = _gathering_course(config, sample, yaw_ned_rad, prev_course_cmd_rad)
+        gathering = config.gathering(sample)
+        course = _gathering_course(gathering, yaw_ned_rad, prev_course_cmd_rad)
         if course is None:
             course = course_from_sample(sample, yaw_ned_rad, prev_course_rad, config.min_course_speed_m_s,
                                         _compensated(drift_ned))
@@ -318,7 +318,7 @@ def compute_tick(
             base = _led_course(config, course, prev_course_cmd_rad)
             speed, hold = _targets(config, output.s_proj_m)
             setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _compensated(drift_ned),
-                                         config.accel_ff_max_m_s2, _feed_forward_share(config, sample, speed))
+                                         config.accel_ff_max_m_s2, _feed_forward_share(gathering, sample, speed))
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
@@ -341,15 +341,15 @@ def _led_course(config: TickConfig, course_rad: float, prev_course_cmd_rad: floa
     return frames.wrap_pi(course_rad + lead)
 
 
-def _feed_forward_share(config: TickConfig, sample: PositionSample, speed_m_s: float) -> float:
-    """The share of the command sent as the acceleration target (``velocity_setpoint``): the
-    measured ground speed over ``speed_m_s`` while the vehicle gathers speed
-    (:meth:`TickConfig.gathering`), else 1. A copter leaving the hover turns its velocity with the
+def _feed_forward_share(gathering: bool, sample: PositionSample, speed_m_s: float) -> float:
+    """The share of the command sent as the acceleration target (``velocity_setpoint``, which
+    keeps it within [0, 1]): the measured ground speed over ``speed_m_s`` while the vehicle gathers
+    speed (``gathering``: :meth:`TickConfig.gathering`), else 1. A copter leaving the hover turns its velocity with the
     setpoint on ``|v| a_cmd / V``; ArduCopter adds the whole target to a trajectory it starts from
     the hover's velocity, and the real one slid 7-10 cm sideways in its first 1.5 s (docs/flying.md)."""
-    if not config.gathering(sample):
+    if not gathering:
         return 1.0
-    return min(1.0, math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) / speed_m_s)
+    return math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) / speed_m_s
 
 
 def _compensated(drift_ned: tuple[float, float]) -> tuple[float, float]:
@@ -419,7 +419,7 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     speed, hold = _targets(config, last.output.s_proj_m)
     return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold,
                              _compensated((last.drift_n_m_s, last.drift_e_m_s)), config.accel_ff_max_m_s2,
-                             _feed_forward_share(config, sample, speed))
+                             _feed_forward_share(config.gathering(sample), sample, speed))
 
 
 def _float32(x: float) -> float:
