@@ -275,7 +275,7 @@ def run_bench(args, targets: list[Target]) -> dict:
         real_dir = root / f"{t.autopilot}-real"
         real_runs = [flight_row(fly_on(t, True, mission, opts, real_dir / f"run-{k}" if args.real_runs > 1 else real_dir,
                                        timeout_s, later_s=k * stagger_s), limit) for k in range(args.real_runs)]
-        real = median_row(real_runs)
+        real = median_row(real_runs) if real_runs else {}  # --real-runs 0: the mock alone
         ratio = None
         if mock.get("d_rms_m") and real.get("d_rms_m") is not None:
             ratio = real["d_rms_m"] / mock["d_rms_m"]
@@ -322,7 +322,7 @@ def format_table(result: dict) -> str:
              f"{result['max_duration_s']:g} s, speed-up {result['speedup']:g}"]
     seeds, reals = result.get("mock_seeds", 1), result.get("real_runs", 1)
     for ap, r in result["autopilots"].items():
-        real_head = f"real {ap}" if reals == 1 else f"real {ap} (median of {reals})"
+        real_head = {0: f"real {ap}: not flown", 1: f"real {ap}"}.get(reals, f"real {ap} (median of {reals})")
         lines.append(f"{'':16s}{'mock' if seeds == 1 else f'mock (median of {seeds})':>12s}{real_head:>16s}")
         for k in METRICS:
             lines.append(f"{k:16s}{_cell(r['mock'], k):>12s}{_cell(r['real'], k):>16s}")
@@ -367,7 +367,8 @@ def register(subparsers) -> None:
                         "each metric's median (default 1)")
     p.add_argument("--real-runs", type=int, default=1, metavar="N",
                    help="fly the real binary N times, each started afresh and flown --real-stagger-s later "
-                        "after its boot than the one before, and report each metric's median (default 1)")
+                        "after its boot than the one before, and report each metric's median (default 1; "
+                        "0: the mock alone, its personality named by --arducopter / --px4)")
     p.add_argument("--real-stagger-s", type=float, metavar="S",
                    help="how much later each further real flight starts (default: the flight time + 30 s, "
                         "so that none meets the sensor noise another flew; a SITL replays the same noise "
@@ -382,8 +383,8 @@ def run(args) -> int:
         raise CompanionError("bench sitl: --max-duration-s and --speedup: expected numbers > 0")
     if args.mock_seeds < 1:
         raise CompanionError(f"bench sitl: --mock-seeds: expected an integer >= 1, got {args.mock_seeds}")
-    if args.real_runs < 1:
-        raise CompanionError(f"bench sitl: --real-runs: expected an integer >= 1, got {args.real_runs}")
+    if args.real_runs < 0:
+        raise CompanionError(f"bench sitl: --real-runs: expected an integer >= 0, got {args.real_runs}")
     if args.real_stagger_s is not None and not (math.isfinite(args.real_stagger_s) and args.real_stagger_s >= 0):
         raise CompanionError(f"bench sitl: --real-stagger-s: expected a number >= 0, got {args.real_stagger_s}")
     targets = check_binaries(args)

@@ -160,6 +160,32 @@ def test_several_real_flights_start_later_and_later_after_boot_and_report_their_
     assert [c[1] for c in calls if c[0]] == [0.0, 5.0, 10.0]
 
 
+def test_no_real_run_flies_the_mock_alone_and_starts_no_binary(monkeypatch, tmp_path):
+    # --real-runs 0: the binary options only name the mock's personality; nothing real is started,
+    # the real side is empty and there is no ratio.
+    from argparse import Namespace
+
+    from companion.bench import sitl
+
+    calls = []
+
+    def fake_fly_on(target, real, mission, opts, workdir, timeout_s, seed=0, later_s=0.0):
+        calls.append((target.autopilot, real, seed))
+        return {"d_rms_m": 0.1 * (seed + 1), "exit": "max duration", "tlog": "unused"}
+
+    monkeypatch.setattr(sitl, "fly_on", fake_fly_on)
+    monkeypatch.setattr(sitl, "log_figures", lambda tlog, limit: {})
+    args = Namespace(mission="missions/paper_sine.yaml", method=None, a_limit_m_s2=2.0, max_duration_s=60.0,
+                     speedup=1.0, workdir=str(tmp_path), mock_seeds=3, real_runs=0, real_stagger_s=None)
+    out = sitl.run_bench(args, [px4_target("px4", "etc", None)])
+    assert calls == [("px4", False, 0), ("px4", False, 1), ("px4", False, 2)]
+    side = out["autopilots"]["px4"]
+    assert side["real"] == {} and side["d_rms_ratio_real_mock"] is None and "real_runs" not in side
+    assert side["mock"]["d_rms_m"] == pytest.approx(0.2)
+    text = format_table(out)
+    assert "real px4: not flown" in text and "d_rms real / mock: -" in text
+
+
 def test_a_later_real_flight_waits_that_much_longer_after_boot(monkeypatch, tmp_path):
     from companion.bench import sitl
 
@@ -178,7 +204,7 @@ def test_a_later_real_flight_waits_that_much_longer_after_boot(monkeypatch, tmp_
     assert "exited 1 at start" in row["error"] and waits == [100.0]  # PX4's 10 s warm-up + 90 s
 
 
-@pytest.mark.parametrize("option, value", [("--real-runs", "0"), ("--real-stagger-s", "-1")])
+@pytest.mark.parametrize("option, value", [("--real-runs", "-1"), ("--real-stagger-s", "-1")])
 def test_bad_real_run_options_are_refused_with_one_line(capsys, option, value):
     assert main(["bench", "sitl", "missions/paper_sine.yaml", "--px4", sys.executable, "--px4-romfs", ".",
                  option, value]) == 2
