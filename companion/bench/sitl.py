@@ -31,6 +31,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
 import signal
 import statistics
 import subprocess
@@ -260,6 +261,7 @@ def run_bench(args, targets: list[Target]) -> dict:
             "--origin-timeout-s", "60"]
     if args.speedup != 1.0:
         opts += ["--clock", "autopilot"]
+    opts += shlex.split(getattr(args, "fly_args", None) or "")
     timeout_s = args.max_duration_s / args.speedup + 240.0
     root = Path(args.workdir or tempfile.mkdtemp(prefix="bench-sitl-"))
     out: dict = {"mission": args.mission, "method": args.method,
@@ -373,6 +375,9 @@ def register(subparsers) -> None:
                    help="how much later each further real flight starts (default: the flight time + 30 s, "
                         "so that none meets the sensor noise another flew; a SITL replays the same noise "
                         "after every boot)")
+    p.add_argument("--fly-args", metavar="ARGS",
+                   help="more options for every `companion fly` of the bench, as one string "
+                        "(e.g. \"--speed-hold-tc-s 2\"), the mock's and the real's alike")
     p.add_argument("--workdir", help="where the flights' logs go (default: a new temporary directory)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)

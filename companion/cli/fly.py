@@ -41,6 +41,10 @@ def add_flight_options(parser, *, connect_required: bool = True, tlog_prefix: st
                         help="velocity output: estimate the autopilot's velocity-estimate drift (its position "
                              "leaving the integral of its velocity), low-passed over this long, and compensate "
                              f"it; 0 turns it off (default {DEFAULT_DRIFT_TC_S:g}; docs/flying.md)")
+    parser.add_argument("--speed-hold-tc-s", type=float, default=0.0,
+                        help="velocity output: lengthen the velocity setpoint by the integral of the ground-speed "
+                             "error over this integral time (s), so that a vehicle that flies slower than asked "
+                             "(PX4 SIH: 4.3 m/s for 5) flies the mission's speed; 0: off (default; docs/flying.md)")
     parser.add_argument("--tlog", default=None, help=f"flight log path (default logs/{tlog_prefix}-<UTC time>.tlog)")
     parser.add_argument("--signing-key-file", default=None,
                         help="MAVLink 2 signing key: 64 hex characters or a passphrase (SHA-256)")
@@ -140,6 +144,7 @@ def options_from_args(args, mission, **overrides):
         origin_timeout_s=getattr(args, "origin_timeout_s", 10.0),
         position_timeout_s=getattr(args, "position_timeout_s", 90.0),
         drift_tc_s=getattr(args, "drift_tc_s", DEFAULT_DRIFT_TC_S),
+        speed_hold_tc_s=getattr(args, "speed_hold_tc_s", 0.0),
         health=health_options_from_args(args),
     )
     kw.update(overrides)

@@ -194,6 +194,7 @@ def velocity_setpoint(
     drift_ned_m_s: tuple[float, float] = (0.0, 0.0),
     accel_ff_max_m_s2: float = 0.0,
     accel_ff_share: float = 1.0,
+    speed_boost_m_s: float = 0.0,
 ) -> VelocitySetpoint:
     """Velocity + yaw-rate setpoint for a lateral acceleration command.
 
@@ -216,6 +217,8 @@ def velocity_setpoint(
         (``companion.loop.tick``). The setpoint turns at ``omega = a_cmd / V``; a vehicle moving at
         ``v`` turns with it on ``v * omega``, and an autopilot that adds the target to its own
         trajectory (ArduCopter) pushes a hovering copter sideways with the rest.
+    speed_boost_m_s : added to the setpoint's length, not to the ``V`` it turns with (the ground-
+        speed hold, :mod:`companion.guidance.speed_hold`); the length stays >= 0.
 
     Examples
     --------
@@ -233,10 +236,13 @@ def velocity_setpoint(
     """
     if not (speed_m_s > 0 and math.isfinite(speed_m_s)):
         raise ValueError(f"speed_m_s: expected a finite number > 0, got {speed_m_s!r}")
+    if not math.isfinite(speed_boost_m_s):
+        raise ValueError(f"speed_boost_m_s: expected a finite number, got {speed_boost_m_s!r}")
     omega_enu_rad_s = a_cmd_m_s2 / speed_m_s
     course_cmd = frames.wrap_pi(course_enu_rad + omega_enu_rad_s * dt_s)
-    ve = speed_m_s * math.cos(course_cmd)
-    vn = speed_m_s * math.sin(course_cmd)
+    length = max(0.0, speed_m_s + speed_boost_m_s)
+    ve = length * math.cos(course_cmd)
+    vn = length * math.sin(course_cmd)
     vx_ned, vy_ned, _ = frames.vel_ned_from_enu(ve, vn, 0.0)
     return VelocitySetpoint(
         vx_ned_m_s=vx_ned - drift_ned_m_s[0],

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Callable, Protocol
 
 from companion.guidance.drift import DriftEstimator
+from companion.guidance.speed_hold import SpeedHold
 from companion.guidance.factory import make_law
 from companion.guidance.profiled import ProfiledGuidance
 from companion.guidance.types import GuidanceLaw
@@ -83,6 +84,8 @@ class TickDriver:
         self.pending: PendingStep | None = None
         # The velocity estimate's drift, fed by every tick's sample (companion.guidance.drift).
         self.drift = DriftEstimator(config.drift_tc_s) if config.compensates_drift else None
+        # The ground-speed hold's integral (companion.guidance.speed_hold), off unless asked for.
+        self.speed_hold = SpeedHold(config.speed_hold_tc_s) if config.holds_speed else None
 
     # ------------------------------------------------------------------ the inputs of a tick
 
@@ -91,7 +94,7 @@ class TickDriver:
         """The next tick as a call with the carried state bound now (to run here or in a worker)."""
         call = functools.partial(compute_tick, self.guidance, self.ticks_run, t_s, sample, sample_age_s,
                                  self.config, yaw_ned_rad=yaw_ned_rad, prev_course_rad=self.prev_course_rad,
-                                 prev_course_cmd_rad=self.prev_course_cmd_rad, drift=self.drift)
+                                 prev_course_cmd_rad=self.prev_course_cmd_rad, drift=self.drift, speed_hold=self.speed_hold)
         self.ticks_run += 1
         return call
 
@@ -104,7 +107,7 @@ class TickDriver:
         """
         return compute_tick(self.guidance, tick, t_s, sample, sample_age_s, self.config,
                             yaw_ned_rad=yaw_ned_rad, prev_course_rad=prev_course_rad,
-                            prev_course_cmd_rad=prev_course_cmd_rad, drift=self.drift)
+                            prev_course_cmd_rad=prev_course_cmd_rad, drift=self.drift, speed_hold=self.speed_hold)
 
     # ------------------------------------------------------------------ the rules
 

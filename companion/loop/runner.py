@@ -107,6 +107,7 @@ class FlyOptions:
     attitude_rate_hz: float = 20.0
     origin_timeout_s: float = 10.0  # geodetic missions: wait this long for GPS_GLOBAL_ORIGIN
     drift_tc_s: float = DEFAULT_DRIFT_TC_S  # the velocity estimate's drift compensated over this long; 0: off
+    speed_hold_tc_s: float = 0.0  # the ground-speed hold's integral time; 0: off
     health: HealthOptions = HealthOptions()
 
     def __post_init__(self) -> None:
@@ -123,8 +124,10 @@ class FlyOptions:
             raise CompanionError(f"--on-finish: expected one of {', '.join(ON_FINISH)}, got {self.on_finish!r}")
         if not (0 < self.max_bank_deg < 90):
             raise CompanionError(f"--max-bank-deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
-        if not (isinstance(self.drift_tc_s, (int, float)) and math.isfinite(self.drift_tc_s) and self.drift_tc_s >= 0):
-            raise CompanionError(f"--drift-tc-s: expected a number >= 0 (0: off), got {self.drift_tc_s!r}")
+        for name in ("drift_tc_s", "speed_hold_tc_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise CompanionError(f"--{name.replace('_', '-')}: expected a number >= 0 (0: off), got {value!r}")
 
 
 class _Terminate(BaseException):
@@ -289,7 +292,7 @@ class FlightRunner:
         config = TickConfig(speed_m_s=self.mission.speed_m_s, rate_hz=self.opt.rate_hz,
                             altitude_m=self.mission.altitude_m, stale_s=self.opt.stale_s, output=output,
                             max_bank_deg=self.opt.max_bank_deg, profile=self.mission.profile,
-                            drift_tc_s=self.opt.drift_tc_s)
+                            drift_tc_s=self.opt.drift_tc_s, speed_hold_tc_s=self.opt.speed_hold_tc_s)
         if config.output == "velocity":
             info = s.link.info
             config = replace(config, accel_ff_max_m_s2=accel_feedforward_max(self.mission, info.autopilot, info.vehicle))

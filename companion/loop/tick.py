@@ -38,7 +38,10 @@ Rules applied here (and therefore identically in flight and in replay):
 * with ``TickConfig.drift_tc_s`` > 0 (velocity output), every fresh sample feeds the flight's
   :class:`~companion.guidance.drift.DriftEstimator`: the course handed to the guidance is that of
   the reported velocity plus the estimate, and the velocity setpoint is sent less the estimate
-  (the vehicle flies its setpoint plus its estimate's drift; ``docs/flying.md``).
+  (the vehicle flies its setpoint plus its estimate's drift; ``docs/flying.md``);
+* with ``TickConfig.speed_hold_tc_s`` > 0 (velocity output), the flight's
+  :class:`~companion.guidance.speed_hold.SpeedHold` integrates the ground-speed error and the
+  velocity setpoint's *length* is the speed plus that correction; it still turns at ``a / V``.
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ from functools import cached_property
 
 from companion.geometry import frames
 from companion.guidance.drift import DriftEstimator
+from companion.guidance.speed_hold import SpeedHold
 from companion.guidance.types import GuidanceOutput, VehicleState, frozen_maker
 from companion.io.setpoints import (
     AltitudeHold,
@@ -108,13 +112,16 @@ DEBUG_FIELDS = (
     "drift_n_m_s",           # 30 the velocity estimate's drift the tick compensated, north (NaN: off)
     "drift_e_m_s",           # 31 ... east
     "drift_tc_s",            # 32 the drift estimate's time constant (TickConfig.drift_tc_s; 0: off)
+    "speed_hold_m_s",        # 33 the speed hold's correction added to the setpoint's magnitude (NaN: off)
+    "speed_hold_tc_s",       # 34 the speed hold's integral time (TickConfig.speed_hold_tc_s; 0: off)
 )
 #: Value of the ``debug_layout`` field of the layout written now; a log's value says which of the
 #: later fields it holds (older logs: NaN padding there).
-DEBUG_LAYOUT = 4
+DEBUG_LAYOUT = 5
 LAYOUT_WITH_YAW = 2  # from this layout on, field 28 holds the tick's yaw
 LAYOUT_WITH_RATE = 3  # from this layout on, field 29 holds the loop rate
 LAYOUT_WITH_DRIFT = 4  # from this layout on, fields 30-32 hold the drift compensation
+LAYOUT_WITH_SPEED_HOLD = 5  # from this layout on, fields 33-34 hold the speed hold
 
 
 @dataclass(frozen=True)
@@ -138,6 +145,7 @@ class TickConfig:
     # the lateral command sent as acceleration feed-forward, limited to this (m/s^2); 0: not sent
     # (companion.io.setpoints; companion.loop.limits.accel_feedforward_max)
     accel_ff_max_m_s2: float = 0.0
+    speed_hold_tc_s: float = 0.0  # integral time of the ground-speed hold (s); 0: off (companion.guidance.speed_hold)
 
     def __post_init__(self) -> None:
         for name in ("speed_m_s", "rate_hz", "stale_s", "max_bank_deg", "alt_gain_1_s", "max_climb_m_s"):
@@ -148,7 +156,7 @@ class TickConfig:
             raise ValueError(f"output: expected 'velocity' or 'attitude', got {self.output!r}")
         if not (0 < self.max_bank_deg < 90):
             raise ValueError(f"max_bank_deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
-        for name in ("drift_tc_s", "accel_ff_max_m_s2"):
+        for name in ("drift_tc_s", "accel_ff_max_m_s2", "speed_hold_tc_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -158,6 +166,12 @@ class TickConfig:
         """Velocity output with a drift time constant: the ticks estimate and compensate the
         velocity estimate's drift (:mod:`companion.guidance.drift`)."""
         return self.output == "velocity" and self.drift_tc_s > 0
+
+    @property
+    def holds_speed(self) -> bool:
+        """Velocity output with a speed-hold integral time: the setpoint's magnitude is corrected
+        until the vehicle flies the mission's speed (:mod:`companion.guidance.speed_hold`)."""
+        return self.output == "velocity" and self.speed_hold_tc_s > 0
 
     def gathering(self, sample: PositionSample) -> bool:
         """Velocity output and slower than ``gathering_fraction`` of the mission speed: hovering or
@@ -200,6 +214,8 @@ class TickResult:
     drift_n_m_s: float = math.nan  # the drift compensated (NED north, east; NaN: not compensating)
     drift_e_m_s: float = math.nan
     drift_tc_s: float = math.nan  # the drift estimate's time constant (TickConfig.drift_tc_s)
+    speed_hold_m_s: float = math.nan  # the speed hold's correction to the setpoint's magnitude (NaN: none)
+    speed_hold_tc_s: float = math.nan  # its integral time (TickConfig.speed_hold_tc_s)
 
     @property
     def phase_code(self) -> int:
@@ -261,6 +277,7 @@ def compute_tick(
     prev_course_rad: float = 0.0,
     prev_course_cmd_rad: float | None = None,
     drift: DriftEstimator | None = None,
+    speed_hold: SpeedHold | None = None,
 ) -> TickResult:
     """Run one tick: newest position sample -> VehicleState -> guidance.step -> setpoint.
 
@@ -278,6 +295,7 @@ def compute_tick(
         None/NaN to start from the measured course.
     drift : the flight's drift estimator (``TickDriver.drift``), fed with every sample a tick
         uses, when ``config.compensates_drift``; None otherwise.
+    speed_hold : the flight's speed hold (``TickDriver.speed_hold``) when ``config.holds_speed``.
     """
     alt_m = -sample.z_ned_m if sample is not None else math.nan
     hold_reason = ""
@@ -289,7 +307,7 @@ def compute_tick(
     state = None
     output = None
     course = prev_course_rad
-    course_cmd = math.nan
+    course_cmd = boost = math.nan
     drift_ned = (math.nan, math.nan)
     if hold_reason:
         # Stale or missing data: not even the altitude term uses it (vz = 0).
@@ -315,10 +333,8 @@ def compute_tick(
         elif config.output == "attitude":
             setpoint = _attitude(config, a_cmd, course, alt_m, output.s_proj_m)
         else:
-            base = _led_course(config, course, prev_course_cmd_rad)
-            speed, hold = _targets(config, output.s_proj_m)
-            setpoint = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, _compensated(drift_ned),
-                                         config.accel_ff_max_m_s2, _feed_forward_share(gathering, sample, speed))
+            setpoint, boost = _velocity(config, a_cmd, _led_course(config, course, prev_course_cmd_rad),
+                                        output.s_proj_m, alt_m, gathering, sample, _compensated(drift_ned), speed_hold)
             course_cmd = setpoint.course_cmd_enu_rad
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
@@ -327,7 +343,8 @@ def compute_tick(
                         course_cmd_rad=course_cmd, prev_course_cmd_rad=prev_cmd, prev_course_rad=prev_course_rad,
                         yaw_ned_rad=math.nan if yaw_ned_rad is None else float(yaw_ned_rad),
                         rate_hz=float(config.rate_hz), drift_n_m_s=drift_ned[0], drift_e_m_s=drift_ned[1],
-                        drift_tc_s=float(config.drift_tc_s))
+                        drift_tc_s=float(config.drift_tc_s), speed_hold_m_s=boost,
+                        speed_hold_tc_s=float(config.speed_hold_tc_s))
 
 
 def _led_course(config: TickConfig, course_rad: float, prev_course_cmd_rad: float | None) -> float:
@@ -350,6 +367,33 @@ def _feed_forward_share(gathering: bool, sample: PositionSample, speed_m_s: floa
     if not gathering:
         return 1.0
     return math.hypot(sample.vx_ned_m_s, sample.vy_ned_m_s) / speed_m_s
+
+
+def _velocity(config: TickConfig, a_cmd: float, base: float, s_m: float, alt_m: float, gathering: bool,
+              sample: PositionSample, drift_ned: tuple[float, float],
+              speed_hold: SpeedHold | None) -> tuple[VelocitySetpoint, float]:
+    """A tick's velocity setpoint from the commanded course ``base``, and the speed hold's
+    correction in it (NaN when off)."""
+    speed, hold = _targets(config, s_m)
+    boost = _speed_hold(speed_hold, config, gathering, sample, speed, drift_ned)
+    return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, drift_ned, config.accel_ff_max_m_s2,
+                             _feed_forward_share(gathering, sample, speed), _finite_or_zero(boost)), boost
+
+
+def _speed_hold(hold: SpeedHold | None, config: TickConfig, gathering: bool, sample: PositionSample,
+                speed_m_s: float, drift_ned: tuple[float, float]) -> float:
+    """The speed hold's correction for this tick (NaN when off): fed the ground speed the
+    position moves at (the reported velocity plus the compensated drift), paused while the
+    vehicle gathers speed (the take-off is not a speed error to integrate)."""
+    if hold is None or not config.holds_speed:
+        return math.nan
+    if gathering:
+        return hold.pause()
+    return hold.update(sample.time_s, speed_m_s, sample.vx_ned_m_s + drift_ned[0], sample.vy_ned_m_s + drift_ned[1])
+
+
+def _finite_or_zero(x: float) -> float:
+    return x if math.isfinite(x) else 0.0
 
 
 def _compensated(drift_ned: tuple[float, float]) -> tuple[float, float]:
@@ -419,7 +463,8 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     speed, hold = _targets(config, last.output.s_proj_m)
     return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold,
                              _compensated((last.drift_n_m_s, last.drift_e_m_s)), config.accel_ff_max_m_s2,
-                             _feed_forward_share(config.gathering(sample), sample, speed))
+                             _feed_forward_share(config.gathering(sample), sample, speed),
+                             _finite_or_zero(last.speed_hold_m_s))
 
 
 def _float32(x: float) -> float:
@@ -482,6 +527,8 @@ def debug_row(result: TickResult) -> list[float]:
         "drift_n_m_s": float(result.drift_n_m_s),
         "drift_e_m_s": float(result.drift_e_m_s),
         "drift_tc_s": float(result.drift_tc_s),
+        "speed_hold_m_s": float(result.speed_hold_m_s),
+        "speed_hold_tc_s": float(result.speed_hold_tc_s),
     }
     if len(values) != len(DEBUG_FIELDS):
         raise AssertionError(f"debug_row: {sorted(set(values) ^ set(DEBUG_FIELDS))}")

@@ -35,7 +35,14 @@ from companion.io.state import GlobalOrigin, global_origin_from_wire
 from companion.io.link import MAV_AUTOPILOT_INVALID, MAV_PARAM_TYPE_REAL32
 from companion.io.logread import MSG_ID, LogWarning, TlogReader
 from companion.io.state import MAX_POSITION_M, MAX_VELOCITY_M_S, PositionSample, position_problem
-from companion.loop.tick import DEBUG_FIELDS, LAYOUT_WITH_DRIFT, LAYOUT_WITH_RATE, LAYOUT_WITH_YAW, PHASE_CODES
+from companion.loop.tick import (
+    DEBUG_FIELDS,
+    LAYOUT_WITH_DRIFT,
+    LAYOUT_WITH_RATE,
+    LAYOUT_WITH_SPEED_HOLD,
+    LAYOUT_WITH_YAW,
+    PHASE_CODES,
+)
 from companion.replay.progress import ByteProgress
 
 GUIDANCE_ARRAY_NAME = "guidance"
@@ -367,6 +374,12 @@ def recorded_drift_tc_s(ticks: list[LoggedTick]) -> float:
     """The drift compensation's time constant the flight's ticks record (``debug_layout`` >= 4),
     0 when it was off or the log predates it."""
     return _recorded(ticks, LAYOUT_WITH_DRIFT, "drift_tc_s") or 0.0
+
+
+def recorded_speed_hold_tc_s(ticks: list[LoggedTick]) -> float:
+    """The speed hold's integral time the flight's ticks record (``debug_layout`` >= 5), 0 when it
+    was off or the log predates it."""
+    return _recorded(ticks, LAYOUT_WITH_SPEED_HOLD, "speed_hold_tc_s") or 0.0
 
 
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:

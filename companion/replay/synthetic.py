@@ -110,15 +110,16 @@ class _Vehicle:
     dt: float
     alpha: float  # the velocity's first-order lag over one tick (1: none)
     drift_en: tuple[float, float] = (0.0, 0.0)  # the velocity estimate's error (ENU): the position moves by it too
+    speed_share: float = 1.0  # the share of the commanded velocity it settles to (< 1: flies slower than asked)
 
     @classmethod
     def at_start(cls, mission: Mission, offset_m: tuple[float, float], dt: float, lag_s: float,
-                 drift_en: tuple[float, float] = (0.0, 0.0)) -> _Vehicle:
+                 drift_en: tuple[float, float] = (0.0, 0.0), speed_share: float = 1.0) -> _Vehicle:
         """At ``offset_m`` from the path's start, flying along it at the mission's speed."""
         (x0, y0), heading = mission.path.start_xy_m, mission.path.start_heading_rad
         speed = mission.speed_m_s
         return cls(x0 + offset_m[0], y0 + offset_m[1], speed * math.cos(heading), speed * math.sin(heading),
-                   mission.altitude_m, dt, 1.0 - math.exp(-dt / lag_s) if lag_s > 0 else 1.0, drift_en)
+                   mission.altitude_m, dt, 1.0 - math.exp(-dt / lag_s) if lag_s > 0 else 1.0, drift_en, speed_share)
 
     def follow(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
         """One tick of the vehicle under the setpoint just sent."""
@@ -130,7 +131,7 @@ class _Vehicle:
             self.ve, self.vn = speed * math.cos(course), speed * math.sin(course)
         else:
             # the vehicle follows the commanded horizontal velocity with a first-order lag
-            cmd_ve, cmd_vn = sp.vy_ned_m_s, sp.vx_ned_m_s
+            cmd_ve, cmd_vn = self.speed_share * sp.vy_ned_m_s, self.speed_share * sp.vx_ned_m_s
             self.ve += self.alpha * (cmd_ve - self.ve)
             self.vn += self.alpha * (cmd_vn - self.vn)
         self.x += (self.ve + self.drift_en[0]) * self.dt
@@ -202,6 +203,7 @@ def write_synthetic_flight(
     dropout_s: tuple[float, float] | None = None, stale_s: float = DEFAULT_STALE_S,
     coast_ticks: int = 0,
     drift_en_m_s: tuple[float, float] = (0.0, 0.0), drift_tc_s: float = 0.0,
+    speed_share: float = 1.0, speed_hold_tc_s: float = 0.0,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -222,6 +224,9 @@ def write_synthetic_flight(
         late and that tick is computed afresh (:meth:`TickDriver.run_tick`).
     drift_en_m_s, drift_tc_s : the vehicle flies the reported velocity plus ``drift_en_m_s`` (ENU),
         a drifting estimate; the loop compensates it over ``drift_tc_s`` (``--drift-tc-s``; 0: off).
+    speed_share, speed_hold_tc_s : the vehicle settles to ``speed_share`` times the commanded
+        velocity (PX4 SIH flies about 0.86 of it); the loop holds the mission's speed with an
+        integral time of ``speed_hold_tc_s`` (``--speed-hold-tc-s``; 0: off).
 
     Returns a dict with ``ticks``, ``records`` and ``generate_s``.
     """
@@ -231,11 +236,12 @@ def write_synthetic_flight(
     write_mission_beside(tlog_path, mission.source_text)
     guidance = make_guidance(mission, rate_hz)
     config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                        output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s)
+                        output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s,
+                        speed_hold_tc_s=speed_hold_tc_s)
     dt = 1.0 / rate_hz
     autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
 
-    v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s)
+    v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s, speed_share)
     driver = TickDriver(guidance, config, mission.path.start_heading_rad)
     n_ticks = int(round(duration_s * rate_hz))
     slow_steps = functools.partial(_SlowStep.run, coast_ticks)

@@ -167,18 +167,21 @@ def test_no_real_run_flies_the_mock_alone_and_starts_no_binary(monkeypatch, tmp_
 
     from companion.bench import sitl
 
-    calls = []
+    calls, opts_seen = [], []
 
     def fake_fly_on(target, real, mission, opts, workdir, timeout_s, seed=0, later_s=0.0):
         calls.append((target.autopilot, real, seed))
+        opts_seen.append(opts)
         return {"d_rms_m": 0.1 * (seed + 1), "exit": "max duration", "tlog": "unused"}
 
     monkeypatch.setattr(sitl, "fly_on", fake_fly_on)
     monkeypatch.setattr(sitl, "log_figures", lambda tlog, limit: {})
     args = Namespace(mission="missions/paper_sine.yaml", method=None, a_limit_m_s2=2.0, max_duration_s=60.0,
-                     speedup=1.0, workdir=str(tmp_path), mock_seeds=3, real_runs=0, real_stagger_s=None)
+                     speedup=1.0, workdir=str(tmp_path), mock_seeds=3, real_runs=0, real_stagger_s=None,
+                     fly_args="--speed-hold-tc-s 2 --drift-tc-s 0")
     out = sitl.run_bench(args, [px4_target("px4", "etc", None)])
     assert calls == [("px4", False, 0), ("px4", False, 1), ("px4", False, 2)]
+    assert opts_seen[-1][-4:] == ["--speed-hold-tc-s", "2", "--drift-tc-s", "0"]  # every flight gets them
     side = out["autopilots"]["px4"]
     assert side["real"] == {} and side["d_rms_ratio_real_mock"] is None and "real_runs" not in side
     assert side["mock"]["d_rms_m"] == pytest.approx(0.2)

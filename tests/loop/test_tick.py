@@ -181,3 +181,36 @@ def test_the_acceleration_target_of_a_copter_gathering_speed_is_its_speed_over_v
     # a coast from that tick sends the same share
     sp = coast_setpoint(r, sample(vx=vx, vy=vy), 0.02, cfg, r.course_cmd_rad)
     assert math.hypot(sp.afx_ned_m_s2, sp.afy_ned_m_s2) == pytest.approx(2.0 * share, abs=1e-12)
+
+
+def test_the_speed_hold_lengthens_the_setpoint_but_not_the_v_it_turns_with():
+    """A copter flying 4 m/s east for 5 asked, reported at 50 Hz, integral time 2 s: after the
+    first report starts the clock, each report adds (5 - 4) * 0.02 / 2 = 0.01 m/s to the
+    setpoint's length. The course still steps by a / V dt with V = 5 (not the length). While
+    the copter gathers speed (below 2.5 m/s) the correction is held; the coast sends the last one."""
+    from companion.guidance.speed_hold import SpeedHold
+
+    cfg = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0, speed_hold_tc_s=2.0)
+    hold = SpeedHold(cfg.speed_hold_tc_s)
+    law = ConstantTurn(a=2.0)
+    for k in range(11):
+        r = compute_tick(law, k, 0.02 * k, sample(vx=0.0, vy=4.0, t_ms=1000 + 20 * k), 0.0, cfg,
+                         prev_course_cmd_rad=0.0, speed_hold=hold)
+    assert r.speed_hold_m_s == pytest.approx(0.1, abs=1e-12)
+    assert math.hypot(r.setpoint.vx_ned_m_s, r.setpoint.vy_ned_m_s) == pytest.approx(5.1, abs=1e-12)
+    assert r.course_cmd_rad == pytest.approx(2.0 / 5.0 * 0.02, abs=1e-12)
+    assert r.setpoint.yaw_rate_ned_rad_s == pytest.approx(-2.0 / 5.0, abs=1e-12)
+    row = r.debug
+    assert row[IDX["speed_hold_m_s"]] == pytest.approx(0.1) and row[IDX["speed_hold_tc_s"]] == 2.0
+    sp = coast_setpoint(r, sample(vx=0.0, vy=4.0, t_ms=1220), 0.02, cfg, r.course_cmd_rad)
+    assert math.hypot(sp.vx_ned_m_s, sp.vy_ned_m_s) == pytest.approx(5.1, abs=1e-12)
+    # gathering speed (1 m/s): held at 0.1 however long, and the setpoint is 5.1 long
+    for k in range(11, 30):
+        r = compute_tick(law, k, 0.02 * k, sample(vx=0.0, vy=1.0, t_ms=1000 + 20 * k), 0.0, cfg,
+                         prev_course_cmd_rad=0.0, speed_hold=hold)
+    assert r.speed_hold_m_s == pytest.approx(0.1, abs=1e-12)
+    assert math.hypot(r.setpoint.vx_ned_m_s, r.setpoint.vy_ned_m_s) == pytest.approx(5.1, abs=1e-12)
+    # off (the default): no correction, NaN in the row, the plain length
+    r = compute_tick(law, 0, 0.0, sample(vx=0.0, vy=4.0), 0.0, CFG, prev_course_cmd_rad=0.0)
+    assert math.isnan(r.debug[IDX["speed_hold_m_s"]]) and r.debug[IDX["speed_hold_tc_s"]] == 0.0
+    assert math.hypot(r.setpoint.vx_ned_m_s, r.setpoint.vy_ned_m_s) == pytest.approx(5.0, abs=1e-12)
