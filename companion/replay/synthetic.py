@@ -193,6 +193,15 @@ class _SlowStep:
         return self._result
 
 
+def _write_setpoint(tlog: TlogWriter, companion: PacketEncoder, sp: VelocitySetpoint | AttitudeSetpoint,
+                    sent_at: float) -> None:
+    if isinstance(sp, AttitudeSetpoint):
+        tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), sent_at)
+    else:
+        tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame, sp.vx_ned_m_s,
+                                                      sp.vy_ned_m_s, sp.vz_ned_m_s, sp.yaw_rate_ned_rad_s), sent_at)
+
+
 def write_synthetic_flight(
     tlog_path: str | Path,
     mission: Mission | str = RACETRACK_MISSION,
@@ -268,13 +277,7 @@ def write_synthetic_flight(
                                        functools.partial(_write_row, tlog, companion, unix))
             sp = tick_out.setpoint
             # as the runner: the tick's guidance row, then its setpoint; a coast after the budget
-            sent_at = unix + 40e-6 if tick_out.result is not None else unix + 0.5 * dt
-            if output == "attitude":
-                tlog.write(companion.attitude_target_packet(1, 1, sp.type_mask, sp.q, sp.thrust), sent_at)
-            else:
-                tlog.write(companion.velocity_setpoint_packet(1, 1, sp.type_mask, sp.coordinate_frame,
-                                                              sp.vx_ned_m_s, sp.vy_ned_m_s, sp.vz_ned_m_s,
-                                                              sp.yaw_rate_ned_rad_s), sent_at)
+            _write_setpoint(tlog, companion, sp, unix + 40e-6 if tick_out.result is not None else unix + 0.5 * dt)
             v.follow(sp)
         records = tlog.records
     return {"ticks": n_ticks, "records": records, "generate_s": time.perf_counter() - started}
