@@ -1,10 +1,11 @@
 """A ground-speed hold: raise the velocity setpoint's magnitude until the vehicle flies the
 mission's speed.
 
-PX4 SIH in OFFBOARD flies a 5 m/s velocity setpoint at 4.0-4.8 m/s, least in the turns: its
-velocity loop closes a fresh error fast and the last part of a lasting one slowly (the "slow
-tail" of docs/vehicle_model.md), and a setpoint that keeps turning keeps such an error open
-(docs/real_firmware.md, "`predictive` at the other laws' a_rms"). The guidance and its rollouts
+PX4 SIH in OFFBOARD flies a 5 m/s velocity setpoint at 4.0-4.8 m/s, least in the turns
+(docs/real_firmware.md, "`predictive` at the other laws' a_rms"). The model identified from it
+closes a fresh velocity error fast and the last part of a lasting one slowly (the "slow tail" of
+docs/vehicle_model.md), and a setpoint that keeps turning keeps such an error open, which would
+explain it. The guidance and its rollouts
 assume the vehicle moves at the mission's speed ``V``. :class:`SpeedHold` integrates the speed
 error and adds it to the magnitude of the velocity setpoint:
 
