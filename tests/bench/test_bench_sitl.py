@@ -181,7 +181,7 @@ def test_no_real_run_flies_the_mock_alone_and_starts_no_binary(monkeypatch, tmp_
                      fly_args="--speed-hold-tc-s 2 --drift-tc-s 0")
     out = sitl.run_bench(args, [px4_target("px4", "etc", None)])
     assert calls == [("px4", False, 0), ("px4", False, 1), ("px4", False, 2)]
-    assert opts_seen[-1][-4:] == ["--speed-hold-tc-s", "2", "--drift-tc-s", "0"]  # every flight gets them
+    assert all(o[-4:] == ["--speed-hold-tc-s", "2", "--drift-tc-s", "0"] for o in opts_seen)  # every flight
     side = out["autopilots"]["px4"]
     assert side["real"] == {} and side["d_rms_ratio_real_mock"] is None and "real_runs" not in side
     assert side["mock"]["d_rms_m"] == pytest.approx(0.2)
