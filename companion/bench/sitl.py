@@ -41,6 +41,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from companion.bench.fronts import flown_config
 from companion.errors import CompanionError
 
 METRICS = ("d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "d_rms_close_m", "d_rms_settled_m", "sat_share",
@@ -261,11 +262,13 @@ def run_bench(args, targets: list[Target]) -> dict:
             "--origin-timeout-s", "60"]
     if args.speedup != 1.0:
         opts += ["--clock", "autopilot"]
-    opts += shlex.split(getattr(args, "fly_args", None) or "")
+    extra = shlex.split(getattr(args, "fly_args", None) or "")
+    opts += extra
     timeout_s = args.max_duration_s / args.speedup + 240.0
     root = Path(args.workdir or tempfile.mkdtemp(prefix="bench-sitl-"))
     out: dict = {"mission": args.mission, "method": args.method,
-                 "max_duration_s": args.max_duration_s, "speedup": args.speedup, "autopilots": {}}
+                 "max_duration_s": args.max_duration_s, "speedup": args.speedup, "autopilots": {},
+                 "flown": flown_config(mission, extra)}
     seeds = range(args.mock_seeds)
     out["mock_seeds"] = args.mock_seeds
     stagger_s = real_stagger_s(args)

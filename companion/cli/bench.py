@@ -10,6 +10,7 @@ BENCH_MODULES = (
     "companion.bench.tracking",
     "companion.bench.sitl",
     "companion.bench.bound",
+    "companion.bench.fronts",
 )
 
 
