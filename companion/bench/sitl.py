@@ -14,7 +14,7 @@ real PX4's does: ``--mock-seeds N`` flies it N times (seeds 0..N-1) and reports 
 median, with the spread of ``d_rms_m``. It prints the shared metric names of each flight
 (``d_rms_m``, ``d_max_m``, ``a_rms_m_s2``, ``a_max_m_s2`` over the whole flight, capture
 included; ``d_rms_close_m`` over the close-range phase; ``d_rms_settled_m`` from 30 s of guidance
-on; ``sat_share``: the share of ticks whose command reaches the acceleration limit, the mission's or
+on, and ``speed_settled_m_s`` the mean ground speed flown there; ``sat_share``: the share of ticks whose command reaches the acceleration limit, the mission's or
 else the one the flight read from the autopilot, ``a_limit_m_s2``; ``sat_share_settled`` the same
 from 30 s on) and the ratio real / mock of ``d_rms_m``.
 
@@ -45,7 +45,7 @@ from companion.bench.fronts import flown_config
 from companion.errors import CompanionError
 
 METRICS = ("d_rms_m", "d_max_m", "a_rms_m_s2", "a_max_m_s2", "d_rms_close_m", "d_rms_settled_m", "sat_share",
-           "sat_share_settled", "a_limit_m_s2", "duration_s")
+           "sat_share_settled", "speed_settled_m_s", "a_limit_m_s2", "duration_s")
 SETTLED_AFTER_S = 30.0  # take-off, climb and capture are over by then on the gallery missions
 PX4_PORT = 14540  # the SIH build's offboard link sends here
 DEFAULT_INSTANCE = 4
@@ -137,7 +137,8 @@ def log_figures(tlog: str, a_limit_m_s2: float) -> dict:
     """From the flight's recorded guidance rows: ``sat_share``, the share of ticks whose |a_cmd|
     reaches the limit (the given one, else the one the flight read from the autopilot's parameters;
     None without either), ``sat_share_settled`` the same from ``SETTLED_AFTER_S`` on, and
-    ``d_rms_settled_m``, the cross-track RMS from ``SETTLED_AFTER_S`` on."""
+    ``d_rms_settled_m``, the cross-track RMS from ``SETTLED_AFTER_S`` on, and ``speed_settled_m_s``, the
+    mean ground speed the autopilot reported over the same ticks (PX4 SIH flies slower than asked)."""
     from companion.loop.limits import limit_from_params
     from companion.replay.flightlog import read_flight
 
@@ -145,18 +146,20 @@ def log_figures(tlog: str, a_limit_m_s2: float) -> dict:
     if not math.isfinite(a_limit_m_s2):
         read = limit_from_params(flight.params)
         a_limit_m_s2 = read.a_max_m_s2 if read is not None else math.nan
-    rows = [(tk.debug_value("t_s"), tk.debug_value("a_cmd_m_s2"), tk.debug_value("crosstrack_m"))
-            for tk in flight.ticks]
+    rows = [(tk.debug_value("t_s"), tk.debug_value("a_cmd_m_s2"), tk.debug_value("crosstrack_m"),
+             tk.debug_value("ground_speed_m_s")) for tk in flight.ticks]
 
     def share(after_s: float) -> float | None:
-        a = [abs(v) for t, v, _ in rows if t >= after_s and math.isfinite(v)]
+        a = [abs(v) for t, v, _, _ in rows if t >= after_s and math.isfinite(v)]
         if not a or not math.isfinite(a_limit_m_s2):
             return None
         return sum(v >= a_limit_m_s2 * (1.0 - 1e-3) for v in a) / len(a)
 
-    d = [x for t, _, x in rows if t >= SETTLED_AFTER_S and math.isfinite(x)]
+    d = [x for t, _, x, _ in rows if t >= SETTLED_AFTER_S and math.isfinite(x)]
     settled = math.sqrt(sum(x * x for x in d) / len(d)) if d else None
+    v = [x for t, _, _, x in rows if t >= SETTLED_AFTER_S and math.isfinite(x)]
     return {"sat_share": share(-math.inf), "sat_share_settled": share(SETTLED_AFTER_S), "d_rms_settled_m": settled,
+            "speed_settled_m_s": sum(v) / len(v) if v else None,
             "a_limit_m_s2": a_limit_m_s2 if math.isfinite(a_limit_m_s2) else None}
 
 

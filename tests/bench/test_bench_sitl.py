@@ -91,7 +91,8 @@ def test_saturation_is_counted_over_the_flight_and_after_30_s_against_the_limit_
     for k in range(40):
         t = float(k)
         ms = 1000 + 1000 * k
-        sample = PositionSample(ms, 0.0, 5.0 * t, -10.0, 0.0, 5.0, 0.0)
+        v = 5.0 if k < 30 else 4.0 + 0.2 * (k % 2)  # from 30 s on: 4.0 and 4.2 in turn, 4.1 on average
+        sample = PositionSample(ms, 0.0, 5.0 * t, -10.0, 0.0, v, 0.0)
         row = list(compute_tick(law, k, t, sample, 0.0, config, prev_course_rad=0.0).debug)
         row += [math.nan] * (58 - len(row))
         log.add(t + 0.5, 1, 1, ap.local_position_ned_encode(ms, 0.0, 5.0 * t, -10.0, 0.0, 5.0, 0.0))
@@ -101,6 +102,7 @@ def test_saturation_is_counted_over_the_flight_and_after_30_s_against_the_limit_
     assert figures["sat_share"] == pytest.approx(11 / 40)
     assert figures["sat_share_settled"] == pytest.approx(1 / 10)
     assert figures["d_rms_settled_m"] == pytest.approx(0.1)
+    assert figures["speed_settled_m_s"] == pytest.approx(4.1)
 
 
 def test_a_mock_flown_with_several_seeds_reports_each_metric_s_median_and_the_spread():
