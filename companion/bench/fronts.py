@@ -12,7 +12,9 @@ and ``predictive``'s error at that law's a_rms is read off the front
 (:func:`companion.bench.tracking.front_at`: the tightest point flown at or below that a_rms, or
 the straight line between the two flown on either side of it). ``met`` is true where that
 error is at most the law's; a law that flew less a_rms than any ``predictive`` flight cannot
-be compared, and counts as not met.
+be compared, and counts as not met. ``--a-tolerance SHARE`` reads the front at the law's a_rms
+times ``1 + SHARE`` instead: flights whose a_rms differ by less than one law's spread from boot
+to boot are then taken as equal.
 
 Flights are compared only within a group: the same mission (by its name), autopilot, side (real
 or mock), acceleration-target setting (``guidance.accel_feedforward``) and ``--fly-args``. The
@@ -82,8 +84,9 @@ def points(results: list[tuple[str, dict]], side: str) -> list[dict]:
     return out
 
 
-def compare(pts: list[dict]) -> list[dict]:
-    """Per group: ``predictive``'s flights and front, and every other law's flight against it."""
+def compare(pts: list[dict], a_tolerance: float = 0.0) -> list[dict]:
+    """Per group: ``predictive``'s flights and front, and every other law's flight against it, read
+    at the law's a_rms times ``1 + a_tolerance`` (0: strictly at or below it)."""
     groups: dict[tuple, list[dict]] = {}
     for p in pts:
         groups.setdefault(p["group"], []).append(p)
@@ -93,7 +96,7 @@ def compare(pts: list[dict]) -> list[dict]:
         front = pareto_front([(p["a_rms_m_s2"], p["d_rms_close_m"]) for p in pred])
         laws = []
         for p in sorted((p for p in members if p["law"] != "predictive"), key=lambda p: (p["law"], p["a_rms_m_s2"])):
-            there = front_at(front, p["a_rms_m_s2"])
+            there = front_at(front, p["a_rms_m_s2"] * (1.0 + a_tolerance))
             laws.append({"law": p["law"], "a_rms_m_s2": p["a_rms_m_s2"], "d_rms_close_m": p["d_rms_close_m"],
                          "predictive_d_rms_close_m": there,
                          "law_over_predictive": None if not there else p["d_rms_close_m"] / there,
@@ -137,6 +140,9 @@ def register(subparsers) -> None:
                               description=__doc__.split("\n\n")[0] if __doc__ else None)
     p.add_argument("files", nargs="+", metavar="BENCH.json", help="outputs of companion bench sitl --json")
     p.add_argument("--side", choices=SIDES, default="real", help="the real flights (default) or the mock's")
+    p.add_argument("--a-tolerance", type=float, default=0.0, metavar="SHARE",
+                   help="read predictive's front at each law's a_rms times 1 + SHARE (default 0: at or below "
+                        "it); for a_rms that differ by less than one law's spread between flights")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -151,10 +157,12 @@ def run(args) -> int:
         except json.JSONDecodeError as err:
             raise CompanionError(f"{name}: not JSON (line {err.lineno}): expected the output of "
                                  "companion bench sitl --json") from None
-    groups = compare(points(results, args.side))
+    if not (math.isfinite(args.a_tolerance) and 0.0 <= args.a_tolerance < 1.0):
+        raise CompanionError(f"bench fronts: --a-tolerance: expected a share in [0, 1), got {args.a_tolerance}")
+    groups = compare(points(results, args.side), args.a_tolerance)
     if args.json:
         compared = [law for g in groups for law in g["laws"]]
-        print(json.dumps({"side": args.side, "groups": groups, "met": sum(law["met"] for law in compared),
+        print(json.dumps({"side": args.side, "a_tolerance": args.a_tolerance, "groups": groups, "met": sum(law["met"] for law in compared),
                           "compared": len(compared)}, indent=2))
     else:
         print(format_table(groups))

@@ -102,3 +102,17 @@ def test_the_command_prints_json_and_refuses_a_file_that_is_not_a_result(tmp_pat
     bad.write_text("[1, 2]")
     assert main(["bench", "fronts", str(bad)]) != 0
     assert "expected the output of companion bench sitl --json" in capsys.readouterr().err
+
+
+def test_a_tolerance_reads_the_front_that_much_further_right():
+    # pure pursuit flew 0.05 % less a_rms than predictive's least (a tie within any boot's spread):
+    # strictly nothing to read; with 0.1 % the front is read at 0.7004: 0.29920, under its 0.2995.
+    rs = [("a", result("predictive", 0.7000, 0.30, 1.0)), ("b", result("predictive", 0.8000, 0.10, 0.03)),
+          ("c", result("pure_pursuit", 0.6997, 0.2995))]
+    [strict] = fronts.compare(fronts.points(rs, "real"))
+    assert strict["laws"][0]["predictive_d_rms_close_m"] is None and not strict["laws"][0]["met"]
+    [tol] = fronts.compare(fronts.points(rs, "real"), a_tolerance=0.001)
+    a = 0.6997 * 1.001
+    assert tol["laws"][0]["predictive_d_rms_close_m"] == pytest.approx(0.30 - 0.20 * (a - 0.70) / 0.10)
+    assert tol["laws"][0]["met"]
+    assert main(["bench", "fronts", "x.json", "--a-tolerance", "-0.1"]) != 0
