@@ -14,9 +14,12 @@ real PX4's does: ``--mock-seeds N`` flies it N times (seeds 0..N-1) and reports 
 median, with the spread of ``d_rms_m``. It prints the shared metric names of each flight
 (``d_rms_m``, ``d_max_m``, ``a_rms_m_s2``, ``a_max_m_s2`` over the whole flight, capture
 included; ``d_rms_close_m`` over the close-range phase; ``d_rms_settled_m`` from 30 s of guidance
-on, and ``speed_settled_m_s`` the mean ground speed flown there; ``sat_share``: the share of ticks whose command reaches the acceleration limit, the mission's or
-else the one the flight read from the autopilot, ``a_limit_m_s2``; ``sat_share_settled`` the same
-from 30 s on) and the ratio real / mock of ``d_rms_m``.
+on, and ``speed_settled_m_s`` the mean ground speed flown there; ``sat_share``: the share of ticks
+whose command reaches the acceleration limit, the mission's or else the one the flight read from
+the autopilot, ``a_limit_m_s2``; ``sat_share_settled`` the same from 30 s on) and the ratio
+real / mock of ``d_rms_m``. The result records what was flown (``flown``: the mission's name, the
+law, ``lambda_s4``, the acceleration-target setting and the extra fly options), so that
+``companion bench fronts`` can put several results side by side.
 
 The binaries are started as ``../shared/tools/sitl/run-*.sh`` start them (nothing of the firmware
 is part of this project): ArduCopter ``--model + --defaults PARM -w -I INSTANCE --serial0
