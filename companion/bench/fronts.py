@@ -51,8 +51,13 @@ def flown_config(mission_file: str, fly_args: list[str] | None, method: str | No
 
 def _flown(result: dict, source: str) -> dict:
     """The ``flown`` record of a bench result, rebuilt from its mission file if it has none."""
-    if isinstance(result.get("flown"), dict):
-        return result["flown"]
+    flown = result.get("flown")
+    if flown is not None:
+        if not (isinstance(flown, dict) and isinstance(flown.get("mission_name"), str)
+                and isinstance(flown.get("method"), str)):
+            raise CompanionError(f"{source}: 'flown': expected an object with the mission's name and the "
+                                 "method, as companion bench sitl --json writes it")
+        return flown
     mission = result.get("mission")
     if not isinstance(mission, str) or not Path(mission).is_file():
         raise CompanionError(f"{source}: no 'flown' record and its mission file {mission!r} is gone; "

@@ -102,6 +102,12 @@ def test_the_command_prints_json_and_refuses_a_file_that_is_not_a_result(tmp_pat
     bad.write_text("[1, 2]")
     assert main(["bench", "fronts", str(bad)]) != 0
     assert "expected the output of companion bench sitl --json" in capsys.readouterr().err
+    broken = result("pure_pursuit", 0.75, 0.25)
+    del broken["flown"]["method"]
+    bad.write_text(json.dumps(broken))
+    assert main(["bench", "fronts", str(bad)]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.json: 'flown': expected an object with the mission's name and the method" in err[0]
 
 
 def test_a_tolerance_reads_the_front_that_much_further_right():
