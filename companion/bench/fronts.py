@@ -75,7 +75,8 @@ def points(results: list[tuple[str, dict]], side: str) -> list[dict]:
                                  "(an object with 'autopilots')")
         flown = _flown(result, source)
         for autopilot, entry in result["autopilots"].items():
-            row = (entry or {}).get(side) or {}
+            row = entry.get(side) if isinstance(entry, dict) else None
+            row = row if isinstance(row, dict) else {}
             a, d = row.get("a_rms_m_s2"), row.get("d_rms_close_m")
             if "error" in row or not isinstance(a, (int, float)) or not isinstance(d, (int, float)):
                 continue
