@@ -53,8 +53,10 @@ def _flown(result: dict, source: str) -> dict:
     """The ``flown`` record of a bench result, rebuilt from its mission file if it has none."""
     flown = result.get("flown")
     if flown is not None:
+        args = flown.get("fly_args") if isinstance(flown, dict) else None
         if not (isinstance(flown, dict) and isinstance(flown.get("mission_name"), str)
-                and isinstance(flown.get("method"), str)):
+                and isinstance(flown.get("method"), str) and flown.get("accel_feedforward") in (None, True, False)
+                and (args is None or (isinstance(args, list) and all(isinstance(a, str) for a in args)))):
             raise CompanionError(f"{source}: 'flown': expected an object with the mission's name and the "
                                  "method, as companion bench sitl --json writes it")
         return flown
@@ -131,8 +133,10 @@ def format_table(groups: list[dict]) -> str:
                           for p in g["predictive"])
         lines.append(f"  predictive: {front or 'not flown'}")
         for law in g["laws"]:
-            verdict = "met" if law["met"] else ("not met" if law["predictive_d_rms_close_m"] is not None
-                                                else "not met: less a_rms than any predictive flight")
+            verdict = "met" if law["met"] else (
+                "not met" if law["predictive_d_rms_close_m"] is not None
+                else "not met: less a_rms than any predictive flight" if g["predictive"]
+                else "not met: no predictive flight to compare")
             lines.append(f"  {law['law']:14s} {law['d_rms_close_m']:.4f} @ {law['a_rms_m_s2']:.3f}   predictive there "
                          f"{_num(law['predictive_d_rms_close_m'], '.4f')}   law / predictive "
                          f"{_num(law['law_over_predictive'], '.2f')}   {verdict}")

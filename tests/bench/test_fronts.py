@@ -71,6 +71,7 @@ def test_flights_of_other_settings_sides_or_missions_are_not_compared():
     assert [law["law"] for law in same["laws"]] == ["npfg"] and same["laws"][0]["met"]
     assert all(not g["predictive"] and all(law["predictive_d_rms_close_m"] is None for law in g["laws"])
                for g in groups if g is not same)
+    assert fronts.format_table(groups).count("not met: no predictive flight to compare") == 3
     [mock] = fronts.compare(fronts.points(rs, "mock"))
     assert mock["side"] == "mock" and [law["law"] for law in mock["laws"]] == ["pure_pursuit"]
 
@@ -108,6 +109,11 @@ def test_the_command_prints_json_and_refuses_a_file_that_is_not_a_result(tmp_pat
     assert main(["bench", "fronts", str(bad)]) != 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bad.json: 'flown': expected an object with the mission's name and the method" in err[0]
+    broken = result("pure_pursuit", 0.75, 0.25)
+    broken["flown"]["fly_args"] = 3
+    bad.write_text(json.dumps(broken))
+    assert main(["bench", "fronts", str(bad)]) != 0
+    assert "bad.json: 'flown': expected an object" in capsys.readouterr().err
 
 
 def test_a_tolerance_reads_the_front_that_much_further_right():
