@@ -24,7 +24,7 @@ _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
 _MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
                    "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0,
                    "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0,
-                   "vel_offset_m_s": 0.0, "pos_delay_s": 0.0}
+                   "vel_offset_m_s": 0.0, "pos_delay_s": 0.0, "accel_ff_gain": 1.0, "accel_ff_lag_s": 0.0}
 
 
 def load_vehicle_model(path: str) -> dict[str, float]:
@@ -157,6 +157,7 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
             kind=args.vehicle, tau_vel_s=tau_vel, tau_yaw_rate_s=args.tau_yaw_rate_s, a_max_m_s2=a_max,
             delay_s=model["delay_s"], accel_lag_s=model["accel_lag_s"], tail_share=model["tail_share"],
             tail_tc_s=model["tail_tc_s"], speed_sag_s=model["speed_sag_s"],
+            accel_ff_gain=model["accel_ff_gain"], accel_ff_lag_s=model["accel_ff_lag_s"],
             yaw_rate_max_rad_s=math.radians(yaw_max), v_max_m_s=5.0 if args.vehicle == "rover" else 12.0,
             airspeed_cruise_m_s=args.airspeed_m_s, airspeed_min_m_s=args.airspeed_min_m_s,
             airspeed_max_m_s=max(25.0, args.airspeed_m_s), tau_roll_s=args.tau_roll_s,

@@ -133,6 +133,10 @@ class VehicleParams:
         Copter, rover: the slow tail of the velocity response: the loop asks for
         ``(e - tail_share * f) / tau_vel_s``, ``f`` the horizontal velocity error ``e`` through a
         low-pass of time constant ``tail_tc_s`` (0 <= share <= 0.95; 0: none).
+    accel_ff_gain, accel_ff_lag_s : float
+        Copter, rover: the acceleration feed-forward, after the command's dead time, times this gain
+        through a first-order lag of this time constant, joins what the velocity loop asks for
+        *before* the slow tail, which takes back its share of it too (PX4's; 1 and 0: added as sent).
     speed_sag_s : float
         Copter, rover: the horizontal speed command shrinks by this times the lateral acceleration
         (m/s per m/s^2), as real position controllers slow down in turns.
@@ -176,6 +180,8 @@ class VehicleParams:
     accel_lag_s: float = 0.0
     tail_share: float = 0.0
     tail_tc_s: float = 1.0
+    accel_ff_gain: float = 1.0
+    accel_ff_lag_s: float = 0.0
     speed_sag_s: float = 0.0
     yaw_rate_max_rad_s: float = math.radians(90.0)
     v_max_m_s: float = 12.0
@@ -206,7 +212,8 @@ class VehicleParams:
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
-                     "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_offset_m_s", "pos_delay_s"):
+                     "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_offset_m_s", "pos_delay_s",
+                     "accel_ff_gain", "accel_ff_lag_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -277,6 +284,7 @@ class VehicleModel:
         self._offset_ne_m_s = (offset_rng.gauss(0.0, params.vel_offset_m_s), offset_rng.gauss(0.0, params.vel_offset_m_s))
         self._cmd_queue: deque = deque()
         self._tail_ne_m_s = (0.0, 0.0)  # the low-passed horizontal velocity error of the slow tail
+        self._ff_ne_m_s2 = (0.0, 0.0)  # the acceleration feed-forward through its lag
         self._noise_ned_m = (0.0, 0.0, 0.0)
         self._pos_history: deque = deque()  # (t, position) over the last pos_delay_s, oldest first
 
@@ -382,8 +390,8 @@ class VehicleModel:
 
     def _horizontal_response(self, dt_s: float, vel_cmd_ned_m_s, acc_ff_ned_m_s2, k: float,
                              dv_max: float) -> tuple[float, float]:
-        """This step's horizontal velocity change: speed sag, slow tail, the lag ``k``, the limit
-        ``dv_max`` and the second lag (the model's own velocity loop; module docstring)."""
+        """This step's horizontal velocity change: speed sag, the feed-forward, slow tail, the lag
+        ``k``, the limit ``dv_max`` and the second lag (the model's own velocity loop; module docstring)."""
         p = self.params
         s = self.state
         v = s.vel_ned_m_s
@@ -397,14 +405,21 @@ class VehicleModel:
                 scale = max(0.0, 1.0 - p.speed_sag_s * a_lat / c_h)
                 cx, cy = cx * scale, cy * scale
         ex, ey = cx - v[0], cy - v[1]
+        # The feed-forward (gain, lag) joins the demand as the velocity error that would ask for it.
+        ax_ff, ay_ff = self._ff_ne_m_s2
+        kff = _lag_gain(dt_s, p.accel_ff_lag_s)
+        ax_ff += (p.accel_ff_gain * acc_ff_ned_m_s2[0] - ax_ff) * kff
+        ay_ff += (p.accel_ff_gain * acc_ff_ned_m_s2[1] - ay_ff) * kff
+        self._ff_ne_m_s2 = (ax_ff, ay_ff)
+        ex, ey = ex + ax_ff * dt_s / k, ey + ay_ff * dt_s / k
         if p.tail_share > 0.0:
             # Slow tail: a low-passed share of the error is taken back from what the loop asks for.
             fx, fy = self._tail_ne_m_s
             kf = _lag_gain(dt_s, p.tail_tc_s)
             self._tail_ne_m_s = (fx + (ex - fx) * kf, fy + (ey - fy) * kf)
             ex, ey = ex - p.tail_share * fx, ey - p.tail_share * fy
-        dvx = ex * k + acc_ff_ned_m_s2[0] * dt_s
-        dvy = ey * k + acc_ff_ned_m_s2[1] * dt_s
+        dvx = ex * k
+        dvy = ey * k
         dv_h = math.hypot(dvx, dvy)
         if dv_h > dv_max:
             dvx *= dv_max / dv_h

@@ -124,7 +124,10 @@ MAX_TAIL_SHARE = 0.95
 #: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
                       "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "vel_bias_jerk_s2",
-                      "vel_bias_jerk_max_m_s3", "vel_offset_m_s", "pos_delay_s")
+                      "vel_bias_jerk_max_m_s3", "vel_offset_m_s", "pos_delay_s", "accel_ff_gain", "accel_ff_lag_s")
+#: The keys that describe the response to an acceleration target (``guidance.accel_feedforward``):
+#: a log flown without one says nothing of them.
+ACCEL_FF_KEYS = ("accel_ff_gain", "accel_ff_lag_s")
 
 
 @dataclass(frozen=True)
@@ -171,6 +174,12 @@ class VehicleModel:
     pos_delay_s : how much older the reported position is than the reported velocity, >= 0
         (ArduCopter SITL's estimator: about 19 ms). Its position then leaves the integral of its
         velocity by about ``-pos_delay_s * v``. The mock reports it so; the guidance does not use it.
+    accel_ff_gain, accel_ff_lag_s : the response to an acceleration target sent beside the
+        velocity (``guidance.accel_feedforward``): the target, seen ``delay_s`` late, times
+        ``accel_ff_gain`` (>= 0) through a first-order lag ``accel_ff_lag_s`` (>= 0), joins what
+        the velocity loop asks for *before* the slow tail, which takes back its share of it like
+        the rest (PX4 SIH: gain 1.31, lag 0.17 s; docs/vehicle_model.md). 1 and 0: the target is
+        added as sent. Flights without a target do not use them.
     """
 
     a_max_m_s2: float = 5.0
@@ -187,6 +196,8 @@ class VehicleModel:
     vel_bias_jerk_max_m_s3: float = 1.0
     vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
+    accel_ff_gain: float = 1.0
+    accel_ff_lag_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in VEHICLE_MODEL_KEYS:

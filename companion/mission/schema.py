@@ -408,6 +408,11 @@ MISSION = Object(
                     "pos_delay_s": Field(Number(minimum=0, maximum=1), "how much older the reported "
                                          "position is than the reported velocity (the mock reports it "
                                          "so; the guidance does not use it)", default=0.0),
+                    "accel_ff_gain": Field(Number(minimum=0, maximum=10), "gain on the acceleration "
+                                           "target (guidance.accel_feedforward), which joins the velocity "
+                                           "loop's demand before the slow tail", default=1.0),
+                    "accel_ff_lag_s": Field(Number(minimum=0, maximum=5), "time constant of a lag on "
+                                            "the acceleration target", default=0.0),
                 },
             ),
             "the vehicle model (absent: the guidance block's rollout_tau_s and a_max_m_s2 alone)"),
