@@ -222,7 +222,9 @@ class _Window:
             tx = np.concatenate([tx, np.full(beyond.size, etx)])
             ty = np.concatenate([ty, np.full(beyond.size, ety)])
             k = np.concatenate([k, np.zeros(beyond.size)])
-        self.x, self.y, self.tx, self.ty, self.k = x, y, tx, ty, k
+        # Contiguous (the samples may be views of one table): the compiled loops are compiled for
+        # contiguous arrays when they are loaded, and another layout would compile anew in flight.
+        self.x, self.y, self.tx, self.ty, self.k = (np.ascontiguousarray(a, dtype=float) for a in (x, y, tx, ty, k))
         self.index = np.arange(self.x.size)
         self._from: np.ndarray | None = None
 
@@ -432,7 +434,8 @@ def cost_to_go_factor(lag_s: float, lambda_s4: float) -> np.ndarray:
         b2 = np.array([[0.0], [1.0]])
         p[:2, :2] = solve_continuous_are(a2, b2, np.diag([1.0, 0.0]), np.array([[lambda_s4]]))
     w, v = np.linalg.eigh(0.5 * (p + p.T))
-    factor: np.ndarray = np.sqrt(np.maximum(w, 0.0))[:, None] * v.T
+    # C order, as the compiled rollouts were compiled for (another layout would compile anew in flight)
+    factor: np.ndarray = np.ascontiguousarray(np.sqrt(np.maximum(w, 0.0))[:, None] * v.T)
     return factor
 
 
