@@ -15,11 +15,12 @@ import sys
 from pathlib import Path
 
 from companion.errors import CompanionError, LogError
-from companion.guidance.types import VEHICLE_MODEL_KEYS
+from companion.guidance.types import ACCEL_FF_KEYS, VEHICLE_MODEL_KEYS
 
 _DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "tail_share": 3, "tail_tc_s": 3,
              "speed_sag_s": 3, "yaw_rate_max_deg_s": 1, "vel_bias_m_s": 4, "vel_bias_tc_s": 2,
-             "vel_bias_jerk_s2": 4, "vel_bias_jerk_max_m_s3": 2, "vel_offset_m_s": 4, "pos_delay_s": 3}
+             "vel_bias_jerk_s2": 4, "vel_bias_jerk_max_m_s3": 2, "vel_offset_m_s": 4, "pos_delay_s": 3,
+             "accel_ff_gain": 3, "accel_ff_lag_s": 3}
 # Values a grid chooses or a bound the log shows: printed without a standard error.
 _NO_ERROR = ("yaw_rate_max_deg_s", "vel_bias_jerk_max_m_s3")
 
@@ -42,11 +43,19 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def vehicle_block_text(model, unidentified: dict, source: str) -> str:
-    """The ``vehicle:`` YAML block, one key per line with a comment on unidentified ones."""
+def written_keys(accel_target: bool) -> tuple[str, ...]:
+    """The keys a log identifies: the acceleration target's only if it flew one."""
+    return tuple(k for k in VEHICLE_MODEL_KEYS if accel_target or k not in ACCEL_FF_KEYS)
+
+
+def vehicle_block_text(model, unidentified: dict, source: str, accel_target: bool = True) -> str:
+    """The ``vehicle:`` YAML block, one key per line with a comment on unidentified ones; without
+    an acceleration target in the log, a comment in place of its keys (their defaults apply)."""
     values = model.as_dict()
     lines = [f"# identified by companion identify from {source}", "vehicle:"]
-    for key in VEHICLE_MODEL_KEYS:
+    if not accel_target:
+        lines.append(f"  # {', '.join(ACCEL_FF_KEYS)}: no acceleration target in the log (defaults apply)")
+    for key in written_keys(accel_target):
         note = f"  # not identified: {unidentified[key]}" if key in unidentified else ""
         lines.append(f"  {key}: {round(values[key], _DECIMALS[key])}{note}")
     return "\n".join(lines) + "\n"
@@ -67,17 +76,20 @@ def run(args) -> int:
     except IdentifyError as err:
         raise LogError(f"{path}: {err}") from None
     q = result.quality
+    accel_target = result.excitation.get("accel_target_s", 0.0) > 0.0
     if args.json:
         from companion.bench.campaign import finite_json  # an infinite standard error is null: JSON has no inf
 
         print(json.dumps(finite_json({"vehicle": result.model.as_dict(), "std_errors": result.std_errors,
                                       "quality": q, "excitation": result.excitation,
-                                      "unidentified": result.unidentified}), indent=2, allow_nan=False))
+                                      "unidentified": result.unidentified,
+                                      "not_in_log": [] if accel_target else list(ACCEL_FF_KEYS)}),
+                         indent=2, allow_nan=False))
     else:
         values = result.model.as_dict()
         print(f"{path.name}: {q['duration_s']:.0f} s of flight under velocity setpoints, "
               f"model: {q['model_structure']}")
-        for key in VEHICLE_MODEL_KEYS:
+        for key in written_keys(accel_target):
             se = result.std_errors.get(key)
             se_text = f" +- {se:.3g}" if se is not None and key not in _NO_ERROR else ""
             flag = "  (not identified)" if key in result.unidentified else ""
@@ -101,11 +113,12 @@ def run(args) -> int:
                                     "--partial writes the block anyway")
     if args.output:
         try:
-            Path(args.output).write_text(vehicle_block_text(result.model, result.unidentified, path.name))
+            Path(args.output).write_text(vehicle_block_text(result.model, result.unidentified, path.name,
+                                                            accel_target))
         except OSError as err:
             raise LogError(f"{args.output}: cannot write: {err.strerror}") from None
         if not args.json:
             print(f"wrote {args.output}", file=sys.stderr)
     elif not args.json:
-        print(vehicle_block_text(result.model, result.unidentified, path.name), end="")
+        print(vehicle_block_text(result.model, result.unidentified, path.name, accel_target), end="")
     return 0

@@ -50,13 +50,12 @@ def read_identification_samples(path: str | Path) -> Samples:
     """The commands and the response in a tlog, on the identification grid.
 
     Raises :class:`companion.errors.LogError` (one line naming the file and what is missing)
-    when the file cannot be read or lacks either direction, or when its setpoints carried an
-    acceleration target (a flight with ``guidance.accel_feedforward``): the model is of the response
-    to velocity setpoints alone, and the target would be taken for the vehicle's own quickness.
+    when the file cannot be read or lacks either direction. An acceleration target sent with the
+    velocity (a flight with ``guidance.accel_feedforward``) is kept with each command (zero where
+    a setpoint's mask ignores it): the model fits the response to it too.
     """
     path = Path(path)
     setpoints = []
-    with_accel = 0
     lpn: dict[tuple[int, int], list] = {}
     att: dict[tuple[int, int], list] = {}
     for rec in TlogReader(path, decode_ids=_IDS):
@@ -68,8 +67,8 @@ def read_identification_samples(path: str | Path) -> Samples:
             if msg.coordinate_frame != MAV_FRAME_LOCAL_NED or msg.type_mask & MASK_IGNORE_VEL:
                 continue
             yaw_rate = 0.0 if msg.type_mask & MASK_IGNORE_YAW_RATE else msg.yaw_rate
-            setpoints.append((rec.time_s, msg.vx, msg.vy, yaw_rate, msg.target_system))
-            with_accel += uses_accel_target(msg.type_mask) and (msg.afx != 0.0 or msg.afy != 0.0)
+            afx, afy = (msg.afx, msg.afy) if uses_accel_target(msg.type_mask) else (0.0, 0.0)
+            setpoints.append((rec.time_s, msg.vx, msg.vy, yaw_rate, afx, afy, msg.target_system))
         elif kind == "LOCAL_POSITION_NED":
             lpn.setdefault((rec.src_system, rec.src_component), []).append(
                 (rec.time_s, msg.time_boot_ms * 1e-3, msg.vx, msg.vy, msg.x, msg.y))
@@ -79,10 +78,7 @@ def read_identification_samples(path: str | Path) -> Samples:
     if not setpoints:
         raise LogError(f"{path}: no SET_POSITION_TARGET_LOCAL_NED velocity setpoints in MAV_FRAME_LOCAL_NED; "
                        "expected a log holding the controller's side of the link")
-    if with_accel:
-        raise LogError(f"{path}: {with_accel} of its velocity setpoints carry an acceleration target; identify "
-                       "fits the response to velocity setpoints alone (fly it with guidance.accel_feedforward: false)")
-    target = Counter(row[4] for row in setpoints).most_common(1)[0][0]
+    target = Counter(row[6] for row in setpoints).most_common(1)[0][0]
 
     def source(streams: dict) -> list:
         mine = {k: v for k, v in streams.items() if k[0] == target} or streams
@@ -92,14 +88,14 @@ def read_identification_samples(path: str | Path) -> Samples:
     if len(meas) < 10:
         raise LogError(f"{path}: no LOCAL_POSITION_NED from system {target}; expected the autopilot's side "
                        "of the link too")
-    sp = np.asarray([row[:4] for row in setpoints], dtype=float)
+    sp = np.asarray([row[:6] for row in setpoints], dtype=float)
     m = np.asarray(meas, dtype=float)
     yaw = np.asarray(source(att), dtype=float).reshape(-1, 3)
     t_yaw = _log_time(yaw[:, 0], yaw[:, 1]) if len(yaw) else np.zeros(0)
     try:
         return resample(t_cmd_s=sp[:, 0], vel_cmd_ne_m_s=sp[:, 1:3], yaw_rate_cmd_rad_s=sp[:, 3],
                         t_meas_s=_log_time(m[:, 0], m[:, 1]), vel_meas_ne_m_s=m[:, 2:4], pos_meas_ne_m=m[:, 4:6],
-                        t_meas_autopilot_s=m[:, 1],
+                        t_meas_autopilot_s=m[:, 1], acc_ff_ne_m_s2=sp[:, 4:6],
                         t_yaw_s=t_yaw, yaw_rate_meas_rad_s=yaw[:, 2] if len(yaw) else np.zeros(0))
     except ValueError as err:
         raise LogError(f"{path}: {err}") from None

@@ -87,16 +87,22 @@ MAX_RELATIVE_SE_BIAS_TC = 0.5
 #: The bias's growth with the jerk is kept when it stands this many standard errors clear of zero.
 JERK_WANDER_SIGNIFICANCE = 4.0
 
-PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s", "tail_share", "tail_tc_s")
-_LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0, 0.0, 0.05])
-_UPPER = np.array([1.5, 3.0, 30.0, 2.0, 2.0, 0.95, 20.0])
-_SCALE = np.array([0.1, 0.1, 1.0, 0.1, 0.1, 0.1, 0.5])  # least-squares x_scale of each parameter
+PARAMS = ("delay_s", "lag_s", "a_max_m_s2", "speed_sag_s", "accel_lag_s", "tail_share", "tail_tc_s",
+          "accel_ff_gain", "accel_ff_lag_s")
+_LOWER = np.array([0.0, 0.02, 0.2, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0])
+_UPPER = np.array([1.5, 3.0, 30.0, 2.0, 2.0, 0.95, 20.0, 3.0, 1.5])
+_SCALE = np.array([0.1, 0.1, 1.0, 0.1, 0.1, 0.1, 0.5, 0.1, 0.05])  # least-squares x_scale of each parameter
 # The parameters each model structure fits (indices into PARAMS); the others stay at their
 # neutral values (no second lag, no tail).
 FIRST_ORDER = (0, 1, 2, 3)
 SECOND_ORDER = (0, 1, 2, 3, 4)
 SLOW_TAIL = (0, 1, 2, 3, 5, 6)
-_NEUTRAL = np.array([0.0, 0.3, 3.0, 0.0, 0.0, 0.0, 1.0])
+_NEUTRAL = np.array([0.0, 0.3, 3.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
+#: The acceleration target's gain and lag: fitted beside each structure's own when the log has one.
+ACCEL_FF = (7, 8)
+#: Seconds of acceleration target (above ACCEL_FF_MIN_M_S2) a log needs to identify its gain and lag.
+MIN_ACCEL_FF_S = 5.0
+ACCEL_FF_MIN_M_S2 = 0.3
 # The second-order model is kept when it cuts the free-run residual RMS by this share of it and
 # by this share of the lateral acceleration's RMS (a cut of a tiny residual is no evidence).
 SECOND_ORDER_GAIN = 0.1
@@ -128,19 +134,27 @@ class Samples:
     # (N,) the autopilot's own clock at each grid time (None: the grid's): the velocity is
     # integrated over it, as the vehicle moved in the autopilot's seconds
     t_autopilot_s: np.ndarray | None = None
+    # (M, 2) the acceleration target sent with each command (None: the log's setpoints had none)
+    acc_ff_raw_ne_m_s2: np.ndarray | None = None
+
+    def has_accel_target(self) -> bool:
+        return self.acc_ff_raw_ne_m_s2 is not None and bool(np.any(self.acc_ff_raw_ne_m_s2 != 0.0))
 
 
 def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_s: ArrayLike,
              t_meas_s: ArrayLike, vel_meas_ne_m_s: ArrayLike, t_yaw_s: ArrayLike = (),
              yaw_rate_meas_rad_s: ArrayLike = (), pos_meas_ne_m: ArrayLike | None = None,
-             t_meas_autopilot_s: ArrayLike | None = None, dt_s: float = GRID_DT_S) -> Samples:
+             t_meas_autopilot_s: ArrayLike | None = None, acc_ff_ne_m_s2: ArrayLike | None = None,
+             dt_s: float = GRID_DT_S) -> Samples:
     """Put the log's commands and measurements on one grid of step ``dt_s``.
 
     Times are seconds on one clock (the log's). Measured velocities (and positions, when given)
     are interpolated linearly onto the grid; a grid point is valid when the newest command is at
     most :data:`MAX_COMMAND_GAP_S` old and the measurement brackets it closely.
     ``t_meas_autopilot_s``, the measurements' own time stamps (the autopilot's clock), is carried
-    onto the grid the same way (:attr:`Samples.t_autopilot_s`).
+    onto the grid the same way (:attr:`Samples.t_autopilot_s`). ``acc_ff_ne_m_s2``, the
+    acceleration target sent with each command (zero where a setpoint carried none), is kept with
+    the commands.
     """
     t_cmd = np.asarray(t_cmd_s, float)
     vc = np.asarray(vel_cmd_ne_m_s, float).reshape(-1, 2)
@@ -153,6 +167,7 @@ def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_
         raise IdentifyError(f"only {len(tm)} velocity measurements: expected LOCAL_POSITION_NED throughout")
     order = np.argsort(t_cmd, kind="stable")
     t_cmd, vc, yc = t_cmd[order], vc[order], yc[order]
+    ff = None if acc_ff_ne_m_s2 is None else np.asarray(acc_ff_ne_m_s2, float).reshape(-1, 2)[order]
     order = np.argsort(tm, kind="stable")
     tm, vm = tm[order], vm[order]
     pm = None if pos_meas_ne_m is None else np.asarray(pos_meas_ne_m, float).reshape(-1, 2)[order]
@@ -175,7 +190,7 @@ def resample(*, t_cmd_s: ArrayLike, vel_cmd_ne_m_s: ArrayLike, yaw_rate_cmd_rad_
     pos = None if pm is None else np.column_stack([np.interp(t, tm, pm[:, 0]), np.interp(t, tm, pm[:, 1])])
     t_ap = None if t_meas_autopilot_s is None else np.interp(t, tm, np.asarray(t_meas_autopilot_s, float)[order])
     return Samples(t, v, valid, t_cmd, vc, yc, np.asarray(t_yaw_s, float), np.asarray(yaw_rate_meas_rad_s, float),
-                   pos, t_ap)
+                   pos, t_ap, ff)
 
 
 def velocity_bias(t_s: np.ndarray, pos_ne_m: np.ndarray, vel_ne_m_s: np.ndarray, valid: np.ndarray,
@@ -556,6 +571,14 @@ def _delayed_command(s: Samples, delay_s: float) -> np.ndarray:
                             np.interp(tq, s.t_cmd_s, s.vel_cmd_raw_ne_m_s[:, 1])])
 
 
+def _delayed_accel_target(s: Samples, delay_s: float) -> np.ndarray:
+    """The acceleration target at ``t - delay_s`` (held from each command, as the vehicle holds it)."""
+    if s.acc_ff_raw_ne_m_s2 is None:
+        return np.zeros((len(s.t_s), 2))
+    idx = np.clip(np.searchsorted(s.t_cmd_s, s.t_s - delay_s, side="right") - 1, 0, None)
+    return np.asarray(s.acc_ff_raw_ne_m_s2[idx], dtype=float)
+
+
 def smoothed(s: Samples) -> np.ndarray:
     """The measured velocity through a zero-phase Savitzky-Golay smoother (quadratic, window
     :data:`SMOOTH_S`): differencing 50 Hz estimator output amplifies its sample noise (PX4's by
@@ -597,9 +620,11 @@ def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[n
     """Run the model over the samples; returns ``(acc (N, 2), saturated (N,))``: the model's
     acceleration over each step ``k -> k + 1``.
 
-    ``theta`` = ``(delay_s, lag_s, a_max_m_s2, speed_sag_s, accel_lag_s, tail_share, tail_tc_s)``
-    (the last two may be left out: no tail). In a free run (default) the state is the model's
-    own, restarted from the (smoothed) measurement after each gap in the command stream (the
+    ``theta`` = ``(delay_s, lag_s, a_max_m_s2, speed_sag_s, accel_lag_s, tail_share, tail_tc_s,
+    accel_ff_gain, accel_ff_lag_s)`` (the tail's two and the target's two may be left out: none, and
+    a target added as sent). The acceleration target, times its gain through its lag, joins the
+    demand as the velocity error that would ask for it, before the tail (docs/vehicle_model.md).
+    In a free run (default) the state is the model's own, restarted from the (smoothed) measurement after each gap in the command stream (the
     tail's low-pass from the error there); with ``one_step`` every step starts from the measured
     velocity (and acceleration, for the second-order model; the tail's low-pass runs on the
     measured error), so the result is the one-step prediction.
@@ -610,7 +635,10 @@ def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[n
     theta = np.asarray(theta, dtype=float)
     delay, lag, a_max, sag, acc_lag = (float(x) for x in theta[:5])
     share, tail_tc = (float(theta[5]), float(theta[6])) if theta.size > 5 else (0.0, 1.0)
+    ff_gain, ff_lag = (float(theta[7]), float(theta[8])) if theta.size > 7 else (1.0, 0.0)
     c = _delayed_command(s, delay)
+    target = _delayed_accel_target(s, delay) * ff_gain
+    k_ff = 1.0 - math.exp(-dt / ff_lag) if ff_lag > 0 else 1.0
     k_v = (1.0 - math.exp(-dt / lag)) / dt if lag > 0 else 1.0 / dt
     k_a = 1.0 - math.exp(-dt / acc_lag) if acc_lag > 0 else 1.0
     k_f = 1.0 - math.exp(-dt / tail_tc)
@@ -622,6 +650,7 @@ def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[n
     valid = s.valid
     vn, ve = v_m[0]
     an, ae = 0.0, 0.0
+    gn, ge = target[0]
     lat_abs = 0.0
     for i in range(n - 1):
         if one_step or not valid[i]:
@@ -635,8 +664,13 @@ def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[n
         cn, ce = c[i]
         cs = math.hypot(cn, ce)
         scale = min(1.0, max(0.0, 1.0 - sag * lat_abs / cs)) if cs > 1e-9 else 1.0
-        en, ee = cn * scale - vn, ce * scale - ve
-        if restart:  # the tail's state is unknown here: as if this error had lasted
+        if restart:  # the target lag's state is unknown here: as if the target had lasted
+            gn, ge = target[i]
+        else:
+            gn += (target[i, 0] - gn) * k_ff
+            ge += (target[i, 1] - ge) * k_ff
+        en, ee = cn * scale - vn + gn / k_v, ce * scale - ve + ge / k_v
+        if restart:  # and the tail's: as if this error had lasted
             fn, fe, restart = en, ee, False
         tn = (en - share * fn) * k_v
         te = (ee - share * fe) * k_v
@@ -692,10 +726,13 @@ def _fit(s: Samples, free: tuple[int, ...], start: ArrayLike,
         theta[idx] = x
         return theta
 
+    # One set of samples for every trial delay (the least squares needs a fixed number of
+    # residuals): those with a command at least the longest delay old (a log that starts in
+    # flight would otherwise gain or lose samples as the delay moves).
+    u = _used(s, v_mid, float(_UPPER[0]))
+
     def residual(x: np.ndarray) -> np.ndarray:
-        theta = full(x)
-        acc = _smooth_like_measured(s, simulate(s, theta)[0])
-        u = _used(s, v_mid, theta[0])
+        acc = _smooth_like_measured(s, simulate(s, full(x))[0])
         return np.asarray(acc[u] - acc_m[u], dtype=float).ravel()
 
     lower, upper = _LOWER[idx], _UPPER[idx]
@@ -739,6 +776,33 @@ def _yaw_rate_limit(s: Samples, delay_s: float, dt: float) -> tuple[float | None
     return limit, sat_s, max_flown
 
 
+def _fit_structures(s: Samples, a_lat_rms: float) -> tuple[str, np.ndarray, np.ndarray, tuple[float, float, float]]:
+    """Fit the first-order model, then each extension (second lag, slow tail) from it; an
+    extension is chosen only if it cuts the residual clearly. With an acceleration target in the
+    log, its gain and lag are fitted beside every structure's own parameters.
+    Returns ``(structure, theta, std errors, (rms first, second, tail))``."""
+    extra = ACCEL_FF if s.has_accel_target() else ()
+    start = _NEUTRAL.copy()
+    start[list(FIRST_ORDER)] = (0.15, 0.3, 3.0, 0.05)
+    if extra:
+        start[list(extra)] = (1.0, 0.05)
+    theta1, se1, rms1 = _fit(s, FIRST_ORDER + extra, start, 40)
+    start2 = theta1.copy()
+    start2[4] = 0.05
+    theta2, se2, rms2 = _fit(s, SECOND_ORDER + extra, start2, 20)
+    start3 = theta1.copy()
+    start3[5:7] = (0.5, 1.0)
+    theta3, se3, rms3 = _fit(s, SLOW_TAIL + extra, start3, 30)
+
+    def better(rms: float) -> bool:
+        return rms < (1.0 - SECOND_ORDER_GAIN) * rms1 and rms1 - rms > SECOND_ORDER_GAIN_ABS * a_lat_rms
+
+    structures = [("first order", theta1, se1, rms1)]
+    structures += [c for c in (("second order", theta2, se2, rms2), ("slow tail", theta3, se3, rms3)) if better(c[3])]
+    structure, theta, se, _ = min(structures, key=lambda c: c[3])
+    return structure, theta, se, (rms1, rms2, rms3)
+
+
 def identify(s: Samples) -> IdentifyResult:
     """Fit the model to the samples; see the module docstring."""
     dt = float(s.t_s[1] - s.t_s[0])
@@ -747,23 +811,7 @@ def identify(s: Samples) -> IdentifyResult:
     if u0.sum() * dt < 10.0:
         raise IdentifyError(f"only {u0.sum() * dt:.1f} s of flight above {MIN_SPEED_M_S} m/s under "
                             "velocity setpoints: expected at least 10 s")
-    start = _NEUTRAL.copy()
-    start[list(FIRST_ORDER)] = (0.15, 0.3, 3.0, 0.05)
-    theta1, se1, rms1 = _fit(s, FIRST_ORDER, start, 40)
-    start2 = theta1.copy()
-    start2[4] = 0.05
-    theta2, se2, rms2 = _fit(s, SECOND_ORDER, start2, 20)
-    start3 = theta1.copy()
-    start3[5:] = (0.5, 1.0)
-    theta3, se3, rms3 = _fit(s, SLOW_TAIL, start3, 30)
-    a_lat_rms = float(np.sqrt(np.mean(a_lat_m[u0] ** 2)))
-
-    def better(rms: float) -> bool:
-        return rms < (1.0 - SECOND_ORDER_GAIN) * rms1 and rms1 - rms > SECOND_ORDER_GAIN_ABS * a_lat_rms
-
-    structures = [("first order", theta1, se1, rms1)]
-    structures += [c for c in (("second order", theta2, se2, rms2), ("slow tail", theta3, se3, rms3)) if better(c[3])]
-    structure, theta, se, _ = min(structures, key=lambda c: c[3])
+    structure, theta, se, (rms1, rms2, rms3) = _fit_structures(s, float(np.sqrt(np.mean(a_lat_m[u0] ** 2))))
     u = _used(s, v_mid, theta[0])
     a_lat = a_lat_m[u]
     one, sat = simulate(s, theta, one_step=True)
@@ -798,6 +846,9 @@ def identify(s: Samples) -> IdentifyResult:
         "turn_changing_s": float(changing.sum() * dt),
         "turning_steady_speed_s": float((turning & steady_speed).sum() * dt),
         "a_lat_cmd_max_m_s2": float(np.max(np.abs(c_turn[u]))) if u.any() else 0.0,
+        # 0: no acceleration target in the log (its gain and lag are not fitted, nor written)
+        "accel_target_s": float((u & (np.hypot(*_delayed_accel_target(s, theta[0]).T) >= ACCEL_FF_MIN_M_S2)).sum()
+                                * dt) if s.has_accel_target() else 0.0,
     }
     yaw_limit, yaw_sat_s, yaw_flown = _yaw_rate_limit(s, theta[0], dt)
     excitation["yaw_saturated_s"] = yaw_sat_s
@@ -809,6 +860,7 @@ def identify(s: Samples) -> IdentifyResult:
     model = VehicleModel(a_max_m_s2=float(theta[2]), delay_s=float(theta[0]), lag_s=float(theta[1]),
                          speed_sag_s=float(theta[3]), accel_lag_s=float(theta[4]),
                          tail_share=float(theta[5]), tail_tc_s=float(theta[6]),
+                         accel_ff_gain=float(theta[7]), accel_ff_lag_s=float(theta[8]),
                          yaw_rate_max_deg_s=math.degrees(yaw_value), **drift_values)
     std = {name: float(se[i]) for i, name in enumerate(PARAMS)}
     std.update(drift_errors)
@@ -935,10 +987,15 @@ def _unidentified(excitation: dict[str, float], theta: np.ndarray, se: np.ndarra
     if excitation["turning_steady_speed_s"] < MIN_SAG_TURNING_S:
         unidentified["speed_sag_s"] = (f"only {excitation['turning_steady_speed_s']:.1f} s of turning at a "
                                        f"steady commanded speed (expected {MIN_SAG_TURNING_S:.0f} s)")
+    if 0.0 < excitation["accel_target_s"] < MIN_ACCEL_FF_S:
+        for name in ("accel_ff_gain", "accel_ff_lag_s"):
+            unidentified[name] = (f"only {excitation['accel_target_s']:.1f} s of acceleration target above "
+                                  f"{ACCEL_FF_MIN_M_S2} m/s^2 (expected {MIN_ACCEL_FF_S:.0f} s)")
     # The sag is zero for a vehicle without it: judge its standard error in absolute terms.
     scales = {"delay_s": max(theta[0], 0.1), "lag_s": theta[1], "a_max_m_s2": theta[2],
               "speed_sag_s": max(theta[3], 0.2), "accel_lag_s": max(theta[4], 0.05),
-              "tail_share": max(theta[5], 0.1), "tail_tc_s": theta[6]}
+              "tail_share": max(theta[5], 0.1), "tail_tc_s": theta[6],
+              "accel_ff_gain": max(theta[7], 0.1), "accel_ff_lag_s": max(theta[8], 0.05)}
     for i, name in enumerate(PARAMS):
         if name not in unidentified and not se[i] <= MAX_RELATIVE_SE * scales[name]:
             unidentified[name] = (f"standard error {se[i]:.3g} is more than {MAX_RELATIVE_SE:.0%} of the "

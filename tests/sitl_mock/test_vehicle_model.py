@@ -228,6 +228,47 @@ def test_a_slow_tail_gives_the_step_response_of_its_two_state_linear_system():
     assert 1.0 - expm([[x * 3.0 for x in row] for row in a])[0][0] < 0.9
 
 
+def run_with_target(model: VehicleModel, seconds: float, acc_ff) -> None:
+    for _ in range(round(seconds / DT_S)):
+        model.step_multirotor(DT_S, (0.0, 0.0, 0.0), 0.0, acc_ff)
+
+
+@pytest.mark.parametrize("share, gain, ff_lag", [(0.0, 1.0, 0.0), (0.0, 1.3, 0.15), (0.85, 1.3, 0.15)])
+def test_the_acceleration_target_joins_the_demand_before_the_slow_tail(share, gain, ff_lag):
+    # Hovering, commanded to stay (c = 0) and given a constant target a0. The target through its
+    # lag, q, joins the demand as the velocity error q tau that would ask for it, so with E the
+    # whole error and f its low-pass:
+    #   v' = (E - s f) / tau,  E = -v + q tau,  f' = (E - f) / T,  q' = (g a0 - q) / T_ff,
+    # a linear system solved by scipy's expm (augmented with the constant input). With s = 0,
+    # g = 1 and no lag it is the target added as sent: v = a0 tau (1 - exp(-t / tau)).
+    import numpy as np
+    from scipy.linalg import expm
+
+    tau, tc, a0 = 0.45, 1.0, 1.0
+    model = copter(tau_vel_s=tau, tail_share=share, tail_tc_s=tc, accel_ff_gain=gain, accel_ff_lag_s=ff_lag,
+                   a_max_m_s2=10.0)
+    # state [v, f, q, 1]
+    q_rate = (-1.0 / ff_lag, gain * a0 / ff_lag) if ff_lag > 0 else None
+    a = np.zeros((4, 4))
+    a[0, :3] = (-1.0 / tau, -share / tau, 1.0)
+    a[1, :3] = (-1.0 / tc, -1.0 / tc, tau / tc)
+    x0 = np.array([0.0, 0.0, 0.0, 1.0])
+    if q_rate is not None:
+        a[2, 2], a[2, 3] = q_rate
+    else:
+        x0[2] = gain * a0  # no lag: the target is there from the start
+    elapsed = 0.0
+    for t in (0.2, 0.5, 1.0, 3.0):
+        run_with_target(model, t - elapsed, (a0, 0.0, 0.0))
+        elapsed = t
+        v = (expm(a * t) @ x0)[0]
+        # within 1 %, or the velocity one physics step of the target gives (the stepping leads the
+        # continuous lag by half a step)
+        assert model.state.vel_ned_m_s[0] == pytest.approx(v, abs=max(0.01 * abs(v), gain * a0 * DT_S)), t
+    if share == 0.0 and gain == 1.0 and ff_lag == 0.0:
+        assert model.state.vel_ned_m_s[0] == pytest.approx(a0 * tau * (1.0 - math.exp(-3.0 / tau)), rel=0.01)
+
+
 def test_the_slow_tail_share_is_bounded():
     with pytest.raises(ValueError, match="tail_share"):
         VehicleParams(kind="copter", tail_share=0.99)
