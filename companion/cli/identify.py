@@ -1,6 +1,6 @@
 """``companion identify FLIGHT.tlog [--json] [-o vehicle.yaml] [--partial]``: fit the vehicle model.
 
-Reads the velocity + yaw-rate setpoints and the vehicle's response from a tlog
+Reads the velocity + yaw-rate setpoints (and any acceleration target) and the vehicle's response from a tlog
 (:mod:`companion.io.idlog`), fits :mod:`companion.sim.identify`'s model, prints the parameters
 with their standard errors and the fit quality, and writes a ``vehicle:`` block that missions
 and ``sitl-mock --vehicle-model`` accept. When the log cannot identify a parameter (too little
@@ -31,10 +31,10 @@ class IdentificationRefused(CompanionError):
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "identify", help="fit the vehicle's response to velocity setpoints from a tlog",
+        "identify", help="fit the vehicle's response to velocity (and acceleration) setpoints from a tlog",
         description="Fit acceleration limit, delay, lag, speed sag, yaw-rate limit and velocity-estimate "
-                    "bias of the vehicle "
-                    "from a tlog holding both directions of the link (docs/vehicle_model.md).")
+                    "bias of the vehicle, and the gain and lag of an acceleration target if the setpoints "
+                    "carried one, from a tlog holding both directions of the link (docs/vehicle_model.md).")
     parser.add_argument("tlog", help="the flight log (companion, MAVProxy or QGroundControl tlog)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     parser.add_argument("-o", "--output", metavar="FILE", help="write the vehicle: block to FILE (YAML)")
