@@ -411,7 +411,8 @@ class VehicleModel:
         ax_ff += (p.accel_ff_gain * acc_ff_ned_m_s2[0] - ax_ff) * kff
         ay_ff += (p.accel_ff_gain * acc_ff_ned_m_s2[1] - ay_ff) * kff
         self._ff_ne_m_s2 = (ax_ff, ay_ff)
-        ex, ey = ex + ax_ff * dt_s / k, ey + ay_ff * dt_s / k
+        if k > 0.0:  # (a zero step changes nothing)
+            ex, ey = ex + ax_ff * dt_s / k, ey + ay_ff * dt_s / k
         if p.tail_share > 0.0:
             # Slow tail: a low-passed share of the error is taken back from what the loop asks for.
             fx, fy = self._tail_ne_m_s
