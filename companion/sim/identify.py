@@ -58,7 +58,7 @@ from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 from scipy.signal import lfilter, savgol_filter
 
-from companion.guidance.types import VehicleModel
+from companion.guidance.types import ACCEL_FF_KEYS, VehicleModel
 from companion.sim.wander import JerkWander, fit_jerk_wander, manoeuvre_jerk_m_s3, usable_pairs
 
 GRID_DT_S = 0.02  # resampling step (50 Hz, the rate the setpoints and positions are streamed at)
@@ -99,7 +99,7 @@ SECOND_ORDER = (0, 1, 2, 3, 4)
 SLOW_TAIL = (0, 1, 2, 3, 5, 6)
 _NEUTRAL = np.array([0.0, 0.3, 3.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
 #: The acceleration target's gain and lag: fitted beside each structure's own when the log has one.
-ACCEL_FF = (7, 8)
+ACCEL_FF = tuple(PARAMS.index(name) for name in ACCEL_FF_KEYS)
 #: Seconds of acceleration target (above ACCEL_FF_MIN_M_S2) a log needs to identify its gain and lag.
 MIN_ACCEL_FF_S = 5.0
 ACCEL_FF_MIN_M_S2 = 0.3
@@ -624,8 +624,9 @@ def simulate(s: Samples, theta: ArrayLike, *, one_step: bool = False) -> tuple[n
     accel_ff_gain, accel_ff_lag_s)`` (the tail's two and the target's two may be left out: none, and
     a target added as sent). The acceleration target, times its gain through its lag, joins the
     demand as the velocity error that would ask for it, before the tail (docs/vehicle_model.md).
-    In a free run (default) the state is the model's own, restarted from the (smoothed) measurement after each gap in the command stream (the
-    tail's low-pass from the error there); with ``one_step`` every step starts from the measured
+    In a free run (default) the state is the model's own, restarted from the (smoothed)
+    measurement after each gap in the command stream (the tail's low-pass from the error there,
+    the target's lag from the target); with ``one_step`` every step starts from the measured
     velocity (and acceleration, for the second-order model; the tail's low-pass runs on the
     measured error), so the result is the one-step prediction.
     The speed sag always reads the model's own lateral acceleration: the measured one, a
@@ -988,7 +989,7 @@ def _unidentified(excitation: dict[str, float], theta: np.ndarray, se: np.ndarra
         unidentified["speed_sag_s"] = (f"only {excitation['turning_steady_speed_s']:.1f} s of turning at a "
                                        f"steady commanded speed (expected {MIN_SAG_TURNING_S:.0f} s)")
     if 0.0 < excitation["accel_target_s"] < MIN_ACCEL_FF_S:
-        for name in ("accel_ff_gain", "accel_ff_lag_s"):
+        for name in ACCEL_FF_KEYS:
             unidentified[name] = (f"only {excitation['accel_target_s']:.1f} s of acceleration target above "
                                   f"{ACCEL_FF_MIN_M_S2} m/s^2 (expected {MIN_ACCEL_FF_S:.0f} s)")
     # The sag is zero for a vehicle without it: judge its standard error in absolute terms.

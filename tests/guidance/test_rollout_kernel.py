@@ -111,7 +111,6 @@ def test_a_flight_calls_the_loops_only_as_they_were_compiled_when_loaded():
     # new version on that tick: two seconds on a machine without the cache, a flight loop stalled.
     # Flying the figure-eight from off the path (captures, re-optimisations, the cost to go)
     # must add no version to any loop.
-    import dataclasses
     from pathlib import Path
 
     from companion.guidance.factory import make_law
@@ -121,8 +120,7 @@ def test_a_flight_calls_the_loops_only_as_they_were_compiled_when_loaded():
     assert kernel is not None
     before = {name: len(getattr(kernel, name).signatures) for name in ("rollout", "pursuit", "project")}
     mission = load_mission(Path(__file__).resolve().parents[2] / "missions" / "figure_eight.yaml")
-    params = GuidanceParams(method="predictive", lambda_s4=0.3, l1_m=10.0)
-    params = dataclasses.replace(params, rate_hz=50.0, speed_m_s=5.0)
+    params = GuidanceParams(method="predictive", lambda_s4=0.3, l1_m=10.0, rate_hz=50.0, speed_m_s=5.0)
     law = make_law(mission.path, params, 50.0, 5.0)
     simulate(mission.path, law, VehicleState(x_m=-8.0, y_m=4.0, course_rad=2.0, speed_m_s=5.0), params,
              model=LagModel(tau_s=0.3, a_max_m_s2=5.0), t_max_s=12.0)
