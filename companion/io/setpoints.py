@@ -195,6 +195,7 @@ def velocity_setpoint(
     accel_ff_max_m_s2: float = 0.0,
     accel_ff_share: float = 1.0,
     speed_boost_m_s: float = 0.0,
+    tail_comp_ned_m_s: tuple[float, float] = (0.0, 0.0),
 ) -> VelocitySetpoint:
     """Velocity + yaw-rate setpoint for a lateral acceleration command.
 
@@ -219,6 +220,8 @@ def velocity_setpoint(
         trajectory (ArduCopter) pushes a hovering copter sideways with the rest.
     speed_boost_m_s : added to the setpoint's length, not to the ``V`` it turns with (the ground-
         speed hold, :mod:`companion.guidance.speed_hold`); the length stays >= 0.
+    tail_comp_ned_m_s : added to the horizontal velocity (north, east) after all the rest: the
+        velocity loop's slow tail compensated (:mod:`companion.guidance.tail_comp`).
 
     Examples
     --------
@@ -245,8 +248,8 @@ def velocity_setpoint(
     vn = length * math.sin(course_cmd)
     vx_ned, vy_ned, _ = frames.vel_ned_from_enu(ve, vn, 0.0)
     return VelocitySetpoint(
-        vx_ned_m_s=vx_ned - drift_ned_m_s[0],
-        vy_ned_m_s=vy_ned - drift_ned_m_s[1],
+        vx_ned_m_s=vx_ned - drift_ned_m_s[0] + tail_comp_ned_m_s[0],
+        vy_ned_m_s=vy_ned - drift_ned_m_s[1] + tail_comp_ned_m_s[1],
         vz_ned_m_s=hold.vz_ned_m_s(alt_m),
         yaw_rate_ned_rad_s=frames.yaw_rate_ned_from_enu(omega_enu_rad_s),
         course_cmd_enu_rad=course_cmd,

@@ -30,6 +30,7 @@ from typing import Callable, Protocol
 
 from companion.guidance.drift import DriftEstimator
 from companion.guidance.speed_hold import SpeedHold
+from companion.guidance.tail_comp import TailCompensator
 from companion.guidance.factory import make_law
 from companion.guidance.profiled import ProfiledGuidance
 from companion.guidance.types import GuidanceLaw
@@ -86,6 +87,8 @@ class TickDriver:
         self.drift = DriftEstimator(config.drift_tc_s) if config.compensates_drift else None
         # The ground-speed hold's integral (companion.guidance.speed_hold), off unless asked for.
         self.speed_hold = SpeedHold(config.speed_hold_tc_s) if config.holds_speed else None
+        # The velocity loop's slow tail, run beside it (companion.guidance.tail_comp), when it has one.
+        self.tail = TailCompensator(config.tail_share, config.tail_tc_s) if config.compensates_tail else None
 
     # ------------------------------------------------------------------ the inputs of a tick
 
@@ -94,7 +97,8 @@ class TickDriver:
         """The next tick as a call with the carried state bound now (to run here or in a worker)."""
         call = functools.partial(compute_tick, self.guidance, self.ticks_run, t_s, sample, sample_age_s,
                                  self.config, yaw_ned_rad=yaw_ned_rad, prev_course_rad=self.prev_course_rad,
-                                 prev_course_cmd_rad=self.prev_course_cmd_rad, drift=self.drift, speed_hold=self.speed_hold)
+                                 prev_course_cmd_rad=self.prev_course_cmd_rad, drift=self.drift, speed_hold=self.speed_hold,
+                                 tail=self.tail)
         self.ticks_run += 1
         return call
 
@@ -107,7 +111,8 @@ class TickDriver:
         """
         return compute_tick(self.guidance, tick, t_s, sample, sample_age_s, self.config,
                             yaw_ned_rad=yaw_ned_rad, prev_course_rad=prev_course_rad,
-                            prev_course_cmd_rad=prev_course_cmd_rad, drift=self.drift, speed_hold=self.speed_hold)
+                            prev_course_cmd_rad=prev_course_cmd_rad, drift=self.drift, speed_hold=self.speed_hold,
+                            tail=self.tail)
 
     # ------------------------------------------------------------------ the rules
 

@@ -140,6 +140,52 @@ def accel_feedforward_limit_m_s2(mission: Mission) -> float:
     return float(a_max) if math.isfinite(a_max) else G_M_S2
 
 
+#: The slow tail of each autopilot's copter velocity loop, as flown from velocity setpoints
+#: (OFFBOARD, GUIDED): its share and time (s), identified from its SITL (docs/vehicle_model.md,
+#: "The slow tail"). ArduCopter's loop has none.
+VELOCITY_TAILS = {"px4": (0.857, 0.958)}
+#: The autopilots whose flights compensate it unless the mission says otherwise (not with the
+#: acceleration target, which the tail takes back too and the compensation does not run).
+TAIL_COMPENSATION_AUTOPILOTS = ("px4",)
+
+
+def velocity_tail(mission: Mission, autopilot: str | None, vehicle: str = "copter",
+                  accel_ff: bool = False) -> tuple[tuple[float, float], str]:
+    """The slow tail a velocity-output flight of ``mission`` on ``autopilot`` compensates
+    (:mod:`companion.guidance.tail_comp`): its share and time, ``(0, 0)`` for none, and where
+    they come from (for the log).
+
+    On when ``guidance.tail_compensation`` says so, or (absent) on an autopilot of
+    :data:`TAIL_COMPENSATION_AUTOPILOTS` flying without the acceleration target (``accel_ff``);
+    never for a ``vehicle`` other than a copter. The tail is the mission's ``vehicle:`` block's
+    when it has one, else the autopilot's in :data:`VELOCITY_TAILS`.
+
+    >>> from companion.mission.loader import parse_mission
+    >>> def line(extra=""):  # a 50 m line at 5 m/s
+    ...     return parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], "
+    ...                          "[50, 0]]}" + extra + "}")
+    >>> velocity_tail(line(), "px4")
+    ((0.857, 0.958), "px4's identified velocity loop")
+    >>> velocity_tail(line(), "ardupilot")[0], velocity_tail(line(), "px4", accel_ff=True)[0]
+    ((0.0, 0.0), (0.0, 0.0))
+    >>> velocity_tail(line(", guidance: {tail_compensation: false}"), "px4")[0]
+    (0.0, 0.0)
+    >>> velocity_tail(line(", vehicle: {a_max_m_s2: 4, lag_s: 0.4, tail_share: 0.5, tail_tc_s: 2}"), "px4")
+    ((0.5, 2.0), "the mission's vehicle block")
+    """
+    on = mission.tail_compensation
+    if on is None:
+        on = autopilot in TAIL_COMPENSATION_AUTOPILOTS and not accel_ff
+    if vehicle != "copter" or not on:
+        return (0.0, 0.0), ""
+    if mission.vehicle is not None:
+        if mission.vehicle.tail_share <= 0:
+            return (0.0, 0.0), ""
+        return (mission.vehicle.tail_share, mission.vehicle.tail_tc_s), "the mission's vehicle block"
+    tail = VELOCITY_TAILS.get(autopilot or "")
+    return (tail, f"{autopilot}'s identified velocity loop") if tail is not None else ((0.0, 0.0), "")
+
+
 def _with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[Mission, str]:
     """:func:`mission_with_limit` before the turns are slowed for."""
     g = mission.guidance

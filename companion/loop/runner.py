@@ -36,6 +36,7 @@ import math
 import signal
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import FrameType
@@ -58,7 +59,7 @@ from companion.io.link import (
 from companion.io.setpoints import G_M_S2
 from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_beside
 from companion.loop.driver import make_guidance
-from companion.loop.limits import accel_feedforward_max, apply_autopilot_limits
+from companion.loop.limits import accel_feedforward_max, apply_autopilot_limits, velocity_tail
 from companion.loop.flight import AutopilotClock, FlightLoop, FlightRecord
 from companion.loop.health import HealthMonitor, HealthOptions, turn_allowance_m
 from companion.loop.profiles import AutopilotProfile, profile_for
@@ -128,6 +129,24 @@ class FlyOptions:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise CompanionError(f"--{name.replace('_', '-')}: expected a number >= 0 (0: off), got {value!r}")
+
+
+def announce_setpoint_options(event: Callable[[str], None], mission: Mission, info, config: TickConfig) -> None:
+    """Say in the flight's log what the setpoints carry besides the law's velocity, and why
+    (``info``: the autopilot's ``AutopilotInfo``)."""
+    if config.accel_ff_max_m_s2 > 0:
+        why = "guidance.accel_feedforward" if mission.accel_feedforward else f"{info.autopilot}'s default"
+        event(f"acceleration feed-forward: the setpoints carry the command up to "
+              f"{config.accel_ff_max_m_s2:.3g} m/s^2 ({why})")
+    elif mission.accel_feedforward and config.output == "velocity":
+        event(f"guidance.accel_feedforward not used: only a copter takes an acceleration target "
+              f"(this is a {info.vehicle})")
+    if config.compensates_tail:
+        _, source = velocity_tail(mission, info.autopilot, info.vehicle, config.accel_ff_max_m_s2 > 0)
+        event(f"velocity loop's slow tail compensated: share {config.tail_share:g}, {config.tail_tc_s:g} s ({source})")
+    elif mission.tail_compensation and config.output == "velocity":
+        event("guidance.tail_compensation not used: no tail known for this vehicle "
+              "(a vehicle: block with tail_share states one)")
 
 
 class _Terminate(BaseException):
@@ -295,7 +314,9 @@ class FlightRunner:
                             drift_tc_s=self.opt.drift_tc_s, speed_hold_tc_s=self.opt.speed_hold_tc_s)
         if config.output == "velocity":
             info = s.link.info
-            config = replace(config, accel_ff_max_m_s2=accel_feedforward_max(self.mission, info.autopilot, info.vehicle))
+            ff = accel_feedforward_max(self.mission, info.autopilot, info.vehicle)
+            (share, tc_s), _ = velocity_tail(self.mission, info.autopilot, info.vehicle, ff > 0)
+            config = replace(config, accel_ff_max_m_s2=ff, tail_share=share, tail_tc_s=tc_s)
         if config.output == "attitude" and self._on_finish_action() == "land":
             raise FlightAborted("--on-finish land is not available for a fixed-wing flight; use rtl or loiter")
         return config
@@ -331,13 +352,7 @@ class FlightRunner:
         if self._guidance is None:  # the autopilot's own acceleration limit (companion.loop.limits)
             self.mission = apply_autopilot_limits(s.link, self.mission, s.event, s.idle)
             config = self._tick_config(s)  # again: the limit may slow the path's turns (a new profile)
-        if config.accel_ff_max_m_s2 > 0:
-            why = "guidance.accel_feedforward" if self.mission.accel_feedforward else f"{s.link.info.autopilot}'s default"
-            s.event(f"acceleration feed-forward: the setpoints carry the command up to "
-                    f"{config.accel_ff_max_m_s2:.3g} m/s^2 ({why})")
-        elif self.mission.accel_feedforward and config.output == "velocity":
-            s.event(f"guidance.accel_feedforward not used: only a copter takes an acceleration target "
-                    f"(this is a {s.link.info.vehicle})")
+        announce_setpoint_options(s.event, self.mission, s.link.info, config)
         guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
         profile = profile_for(s.link.info, s)
         clock = self._clock(s)

@@ -41,7 +41,11 @@ Rules applied here (and therefore identically in flight and in replay):
   (the vehicle flies its setpoint plus its estimate's drift; ``docs/flying.md``);
 * with ``TickConfig.speed_hold_tc_s`` > 0 (velocity output), the flight's
   :class:`~companion.guidance.speed_hold.SpeedHold` integrates the ground-speed error and the
-  velocity setpoint's *length* is the speed plus that correction; it still turns at ``a / V``.
+  velocity setpoint's *length* is the speed plus that correction; it still turns at ``a / V``;
+* with ``TickConfig.tail_share`` > 0 (velocity output), the flight's
+  :class:`~companion.guidance.tail_comp.TailCompensator` runs the velocity loop's slow tail beside
+  it and adds it to the horizontal setpoint, so that the loop answers the setpoint as a first-order
+  lag; a hold starts it again from zero.
 """
 
 from __future__ import annotations
@@ -54,6 +58,7 @@ from functools import cached_property
 from companion.geometry import frames
 from companion.guidance.drift import DriftEstimator
 from companion.guidance.speed_hold import SpeedHold
+from companion.guidance.tail_comp import TailCompensator
 from companion.guidance.types import GuidanceOutput, VehicleState, frozen_maker
 from companion.io.setpoints import (
     AltitudeHold,
@@ -114,14 +119,19 @@ DEBUG_FIELDS = (
     "drift_tc_s",            # 32 the drift estimate's time constant (TickConfig.drift_tc_s; 0: off)
     "speed_hold_m_s",        # 33 the speed hold's correction added to the setpoint's magnitude (NaN: off)
     "speed_hold_tc_s",       # 34 the speed hold's integral time (TickConfig.speed_hold_tc_s; 0: off)
+    "tail_comp_n_m_s",       # 35 the slow tail's compensation added to the setpoint, north (NaN: off)
+    "tail_comp_e_m_s",       # 36 ... east
+    "tail_share",            # 37 the tail's share compensated (TickConfig.tail_share; 0: off)
+    "tail_tc_s",             # 38 the tail's time (TickConfig.tail_tc_s)
 )
 #: Value of the ``debug_layout`` field of the layout written now; a log's value says which of the
 #: later fields it holds (older logs: NaN padding there).
-DEBUG_LAYOUT = 5
+DEBUG_LAYOUT = 6
 LAYOUT_WITH_YAW = 2  # from this layout on, field 28 holds the tick's yaw
 LAYOUT_WITH_RATE = 3  # from this layout on, field 29 holds the loop rate
 LAYOUT_WITH_DRIFT = 4  # from this layout on, fields 30-32 hold the drift compensation
 LAYOUT_WITH_SPEED_HOLD = 5  # from this layout on, fields 33-34 hold the speed hold
+LAYOUT_WITH_TAIL_COMP = 6  # from this layout on, fields 35-38 hold the tail compensation
 
 
 @dataclass(frozen=True)
@@ -146,6 +156,9 @@ class TickConfig:
     # (companion.io.setpoints; companion.loop.limits.accel_feedforward_max)
     accel_ff_max_m_s2: float = 0.0
     speed_hold_tc_s: float = 0.0  # integral time of the ground-speed hold (s); 0: off (companion.guidance.speed_hold)
+    # the velocity loop's slow tail compensated (companion.guidance.tail_comp): its share (0: off) and time (s)
+    tail_share: float = 0.0
+    tail_tc_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("speed_m_s", "rate_hz", "stale_s", "max_bank_deg", "alt_gain_1_s", "max_climb_m_s"):
@@ -156,10 +169,13 @@ class TickConfig:
             raise ValueError(f"output: expected 'velocity' or 'attitude', got {self.output!r}")
         if not (0 < self.max_bank_deg < 90):
             raise ValueError(f"max_bank_deg: expected 0 < value < 90, got {self.max_bank_deg!r}")
-        for name in ("drift_tc_s", "accel_ff_max_m_s2", "speed_hold_tc_s"):
+        for name in ("drift_tc_s", "accel_ff_max_m_s2", "speed_hold_tc_s", "tail_share", "tail_tc_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+        if self.tail_share > 0 and not (self.tail_share <= 0.95 and self.tail_tc_s > 0):
+            raise ValueError(f"tail_share, tail_tc_s: expected a share <= 0.95 and a time > 0, "
+                             f"got {self.tail_share!r}, {self.tail_tc_s!r}")
 
     @property
     def compensates_drift(self) -> bool:
@@ -172,6 +188,12 @@ class TickConfig:
         """Velocity output with a speed-hold integral time: the setpoint's magnitude is corrected
         until the vehicle flies the mission's speed (:mod:`companion.guidance.speed_hold`)."""
         return self.output == "velocity" and self.speed_hold_tc_s > 0
+
+    @property
+    def compensates_tail(self) -> bool:
+        """Velocity output with a tail share: the velocity loop's slow tail is compensated
+        (:mod:`companion.guidance.tail_comp`)."""
+        return self.output == "velocity" and self.tail_share > 0
 
     def gathering(self, sample: PositionSample) -> bool:
         """Velocity output and slower than ``gathering_fraction`` of the mission speed: hovering or
@@ -216,6 +238,10 @@ class TickResult:
     drift_tc_s: float = math.nan  # the drift estimate's time constant (TickConfig.drift_tc_s)
     speed_hold_m_s: float = math.nan  # the speed hold's correction to the setpoint's magnitude (NaN: none)
     speed_hold_tc_s: float = math.nan  # its integral time (TickConfig.speed_hold_tc_s)
+    tail_comp_n_m_s: float = math.nan  # the slow tail's compensation in the setpoint (NED; NaN: none)
+    tail_comp_e_m_s: float = math.nan
+    tail_share: float = math.nan  # the tail compensated (TickConfig.tail_share, tail_tc_s)
+    tail_tc_s: float = math.nan
 
     @property
     def phase_code(self) -> int:
@@ -278,6 +304,7 @@ def compute_tick(
     prev_course_cmd_rad: float | None = None,
     drift: DriftEstimator | None = None,
     speed_hold: SpeedHold | None = None,
+    tail: TailCompensator | None = None,
 ) -> TickResult:
     """Run one tick: newest position sample -> VehicleState -> guidance.step -> setpoint.
 
@@ -295,22 +322,17 @@ def compute_tick(
         None/NaN to start from the measured course.
     drift : the flight's drift estimator (``TickDriver.drift``), fed with every sample a tick
         uses, when ``config.compensates_drift``; None otherwise.
-    speed_hold : the flight's speed hold (``TickDriver.speed_hold``) when ``config.holds_speed``.
+    speed_hold, tail : the flight's speed hold and tail compensator (``TickDriver.speed_hold``,
+        ``TickDriver.tail``) when ``config.holds_speed``, ``config.compensates_tail``.
     """
     alt_m = -sample.z_ned_m if sample is not None else math.nan
-    hold_reason = ""
-    if sample is None:
-        hold_reason = "no_position"
-    elif not (sample_age_s <= config.stale_s):  # also catches NaN ages
-        hold_reason = "stale"
-
+    hold_reason = _hold_reason(sample, sample_age_s, config)
     state = None
     output = None
     course = prev_course_rad
     course_cmd = boost = math.nan
-    drift_ned = (math.nan, math.nan)
-    if hold_reason:
-        # Stale or missing data: not even the altitude term uses it (vz = 0).
+    drift_ned = comp_ned = (math.nan, math.nan)
+    if hold_reason:  # stale or missing data: not even the altitude term uses it (vz = 0)
         setpoint = hold_for(config, alt_m, False, prev_course_rad)
         phase = "hold"
     else:
@@ -333,9 +355,12 @@ def compute_tick(
         elif config.output == "attitude":
             setpoint = _attitude(config, a_cmd, course, alt_m, output.s_proj_m)
         else:
-            setpoint, boost = _velocity(config, a_cmd, _led_course(config, course, prev_course_cmd_rad),
-                                        output.s_proj_m, alt_m, gathering, sample, _compensated(drift_ned), speed_hold)
+            setpoint, boost, comp_ned = _velocity(config, a_cmd, _led_course(config, course, prev_course_cmd_rad),
+                                                  output.s_proj_m, alt_m, gathering, sample, _compensated(drift_ned),
+                                                  speed_hold, tail)
             course_cmd = setpoint.course_cmd_enu_rad
+    if tail is not None and not math.isfinite(comp_ned[0]):
+        tail.reset()  # a hold, or the end: the setpoint is no longer ours to compensate
 
     prev_cmd = math.nan if prev_course_cmd_rad is None else float(prev_course_cmd_rad)
     return _tick_result(tick=tick, t_s=t_s, phase=phase, hold_reason=hold_reason, state=state, output=output,
@@ -344,7 +369,16 @@ def compute_tick(
                         yaw_ned_rad=math.nan if yaw_ned_rad is None else float(yaw_ned_rad),
                         rate_hz=float(config.rate_hz), drift_n_m_s=drift_ned[0], drift_e_m_s=drift_ned[1],
                         drift_tc_s=float(config.drift_tc_s), speed_hold_m_s=boost,
-                        speed_hold_tc_s=float(config.speed_hold_tc_s))
+                        speed_hold_tc_s=float(config.speed_hold_tc_s), tail_comp_n_m_s=comp_ned[0],
+                        tail_comp_e_m_s=comp_ned[1], tail_share=float(config.tail_share),
+                        tail_tc_s=float(config.tail_tc_s))
+
+
+def _hold_reason(sample: PositionSample | None, sample_age_s: float, config: TickConfig) -> str:
+    """Why a tick holds: no sample yet, or one older than ``stale_s`` (NaN ages too); "" if not."""
+    if sample is None:
+        return "no_position"
+    return "" if sample_age_s <= config.stale_s else "stale"
 
 
 def _led_course(config: TickConfig, course_rad: float, prev_course_cmd_rad: float | None) -> float:
@@ -371,13 +405,21 @@ def _feed_forward_share(gathering: bool, sample: PositionSample, speed_m_s: floa
 
 def _velocity(config: TickConfig, a_cmd: float, base: float, s_m: float, alt_m: float, gathering: bool,
               sample: PositionSample, drift_ned: tuple[float, float],
-              speed_hold: SpeedHold | None) -> tuple[VelocitySetpoint, float]:
-    """A tick's velocity setpoint from the commanded course ``base``, and the speed hold's
-    correction in it (NaN when off)."""
+              speed_hold: SpeedHold | None,
+              tail: TailCompensator | None) -> tuple[VelocitySetpoint, float, tuple[float, float]]:
+    """A tick's velocity setpoint from the commanded course ``base``, the speed hold's
+    correction in it (NaN when off) and the tail compensation in it (NED; NaN when off)."""
     speed, hold = _targets(config, s_m)
     boost = _speed_hold(speed_hold, config, gathering, sample, speed, drift_ned)
-    return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, drift_ned, config.accel_ff_max_m_s2,
-                             _feed_forward_share(gathering, sample, speed), _finite_or_zero(boost)), boost
+    comp = (math.nan, math.nan)
+    if tail is not None and config.compensates_tail:
+        comp = tail.correction(sample.time_s, speed, sample.vx_ned_m_s, sample.vy_ned_m_s)
+    sp = velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold, drift_ned, config.accel_ff_max_m_s2,
+                           _feed_forward_share(gathering, sample, speed), _finite_or_zero(boost),
+                           _compensated(comp))
+    if tail is not None and config.compensates_tail:
+        tail.sent(sp.vx_ned_m_s, sp.vy_ned_m_s)
+    return sp, boost, comp
 
 
 def _speed_hold(hold: SpeedHold | None, config: TickConfig, gathering: bool, sample: PositionSample,
@@ -396,9 +438,9 @@ def _finite_or_zero(x: float) -> float:
     return x if math.isfinite(x) else 0.0
 
 
-def _compensated(drift_ned: tuple[float, float]) -> tuple[float, float]:
-    """The drift a tick compensates: its estimate, or none (NaN: not compensating)."""
-    return drift_ned if math.isfinite(drift_ned[0]) else (0.0, 0.0)
+def _compensated(pair_ned: tuple[float, float]) -> tuple[float, float]:
+    """The drift (or tail) a tick compensates: its estimate, or none (NaN: not compensating)."""
+    return pair_ned if math.isfinite(pair_ned[0]) else (0.0, 0.0)
 
 
 def _targets(config: TickConfig, s_m: float) -> tuple[float, object]:
@@ -464,7 +506,8 @@ def coast_setpoint(last: TickResult | None, sample: PositionSample | None, sampl
     return velocity_setpoint(a_cmd, base, speed, config.dt_s, alt_m, hold,
                              _compensated((last.drift_n_m_s, last.drift_e_m_s)), config.accel_ff_max_m_s2,
                              _feed_forward_share(config.gathering(sample), sample, speed),
-                             _finite_or_zero(last.speed_hold_m_s))
+                             _finite_or_zero(last.speed_hold_m_s), _compensated((last.tail_comp_n_m_s,
+                                                                                last.tail_comp_e_m_s)))
 
 
 def _float32(x: float) -> float:
@@ -529,6 +572,10 @@ def debug_row(result: TickResult) -> list[float]:
         "drift_tc_s": float(result.drift_tc_s),
         "speed_hold_m_s": float(result.speed_hold_m_s),
         "speed_hold_tc_s": float(result.speed_hold_tc_s),
+        "tail_comp_n_m_s": float(result.tail_comp_n_m_s),
+        "tail_comp_e_m_s": float(result.tail_comp_e_m_s),
+        "tail_share": float(result.tail_share),
+        "tail_tc_s": float(result.tail_tc_s),
     }
     if len(values) != len(DEBUG_FIELDS):
         raise AssertionError(f"debug_row: {sorted(set(values) ^ set(DEBUG_FIELDS))}")

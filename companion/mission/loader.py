@@ -462,6 +462,7 @@ class _Builder(_Checks):
             vehicle=self.build_vehicle(),
             profile_limits=self.build_profile_limits() or ProfileLimits(),
             accel_feedforward=(doc.get("guidance") or {}).get("accel_feedforward"),
+            tail_compensation=(doc.get("guidance") or {}).get("tail_compensation"),
         )
 
     def build_vehicle(self) -> VehicleModel | None:

@@ -73,6 +73,9 @@ class Mission:
     accel_feedforward : ``guidance.accel_feedforward``: a velocity-output flight sends its lateral
         command as the setpoint's acceleration target too (:mod:`companion.io.setpoints`); None
         (absent): the autopilot's default (:func:`companion.loop.limits.accel_feedforward_max`).
+    tail_compensation : ``guidance.tail_compensation``: a velocity-output flight compensates the
+        velocity loop's slow tail (:mod:`companion.guidance.tail_comp`); None (absent): the
+        autopilot's default (:func:`companion.loop.limits.velocity_tail`).
     profile_limits : the ``vertical:`` and ``along_track:`` limits
         (:class:`companion.geometry.profile.ProfileLimits`): those ``profile`` was smoothed to, and
         those a flight slows down for turns with (:func:`companion.mission.turns.slowed_for_turns`)
@@ -95,6 +98,7 @@ class Mission:
     vehicle: VehicleModel | None = None
     profile_limits: ProfileLimits = field(default_factory=ProfileLimits)
     accel_feedforward: bool | None = None
+    tail_compensation: bool | None = None
 
     def __post_init__(self) -> None:
         if self.on_finish not in ON_FINISH:

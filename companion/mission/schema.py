@@ -366,6 +366,11 @@ MISSION = Object(
                                                "the lateral command as the setpoint's acceleration "
                                                "target too, so the autopilot turns with it (absent: "
                                                "on for ArduPilot, off for PX4; docs/flying.md)"),
+                    "tail_compensation": Field(Boolean(), "copters: compensate the slow tail of the "
+                                               "autopilot's velocity loop (vehicle.tail_share and "
+                                               "tail_tc_s, else the autopilot's identified one) "
+                                               "(absent: on for PX4 without the acceleration "
+                                               "target; docs/flying.md)"),
                 },
             ),
             "guidance tuning", default={}),

@@ -40,6 +40,7 @@ from companion.loop.tick import (
     LAYOUT_WITH_DRIFT,
     LAYOUT_WITH_RATE,
     LAYOUT_WITH_SPEED_HOLD,
+    LAYOUT_WITH_TAIL_COMP,
     LAYOUT_WITH_YAW,
     PHASE_CODES,
 )
@@ -380,6 +381,15 @@ def recorded_speed_hold_tc_s(ticks: list[LoggedTick]) -> float:
     """The speed hold's integral time the flight's ticks record (``debug_layout`` >= 5), 0 when it
     was off or the log predates it."""
     return _recorded(ticks, LAYOUT_WITH_SPEED_HOLD, "speed_hold_tc_s") or 0.0
+
+
+def recorded_tail(ticks: list[LoggedTick]) -> tuple[float, float]:
+    """The slow tail's share and time that the flight's ticks compensated (``debug_layout`` >= 6),
+    ``(0, 0)`` when the compensation was off or the log predates it."""
+    share = _recorded(ticks, LAYOUT_WITH_TAIL_COMP, "tail_share")
+    if share is None:
+        return 0.0, 0.0
+    return share, _recorded(ticks, LAYOUT_WITH_TAIL_COMP, "tail_tc_s") or 0.0
 
 
 def _tick_rate_hz(ticks: list[LoggedTick]) -> float:

@@ -59,6 +59,7 @@ from companion.replay.flightlog import (
     read_flight,
     recorded_drift_tc_s,
     recorded_speed_hold_tc_s,
+    recorded_tail,
     recorded_rate_hz,
 )
 from companion.replay.progress import ByteProgress
@@ -157,19 +158,21 @@ def find_mission(tlog: str | Path, mission: str | Path | None) -> Path:
 
 def tick_config_for(mission: Mission, rate_hz: float, output: str = "velocity",
                     stale_s: float = DEFAULT_STALE_S, drift_tc_s: float = 0.0,
-                    accel_ff: bool = False, speed_hold_tc_s: float = 0.0) -> TickConfig:
+                    accel_ff: bool = False, speed_hold_tc_s: float = 0.0,
+                    tail: tuple[float, float] = (0.0, 0.0)) -> TickConfig:
     """The per-tick settings of a flight of this mission at ``rate_hz`` with ``output``
     (``"velocity"`` or ``"attitude"``), the stale-position limit ``stale_s``, the drift
     compensation's time constant ``drift_tc_s`` (0: off) and, with ``accel_ff``, the acceleration
     target up to the mission's limit (:func:`companion.loop.limits.accel_feedforward_limit_m_s2`)
-    and the ground-speed hold's integral time ``speed_hold_tc_s`` (0: off).
+    the ground-speed hold's integral time ``speed_hold_tc_s`` (0: off) and the velocity loop's
+    slow ``tail`` compensated (share and time; share 0: off).
 
     ``--max-bank-deg`` is not recorded in the log; replay uses its default (35 deg).
     """
     return TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
                       output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s,
                       accel_ff_max_m_s2=accel_feedforward_limit_m_s2(mission) if accel_ff else 0.0,
-                      speed_hold_tc_s=speed_hold_tc_s)
+                      speed_hold_tc_s=speed_hold_tc_s, tail_share=tail[0], tail_tc_s=tail[1])
 
 
 def flight_sent_accel(flight: LoggedFlight) -> bool:
@@ -290,7 +293,7 @@ def replay_flight(
     if config is None and flight.kind == "companion":
         config = tick_config_for(mission, rate_hz, flight_output(flight), flight_stale_s(flight),
                                  recorded_drift_tc_s(flight.ticks), flight_sent_accel(flight),
-                                 recorded_speed_hold_tc_s(flight.ticks))
+                                 recorded_speed_hold_tc_s(flight.ticks), recorded_tail(flight.ticks))
     config = config or tick_config_for(mission, rate_hz, flight_output(flight))
     guidance = guidance_factory(mission, rate_hz)
     replay = _Replay(flight, mission, tolerance, config, guidance)

@@ -42,8 +42,9 @@ from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.io.state import PositionSample
 from companion.io.tlog import TlogWriter, write_mission_beside
 from companion.loop.driver import TickDriver, make_guidance
-from companion.loop.tick import DEFAULT_STALE_S, TickConfig, TickResult
+from companion.loop.tick import DEFAULT_STALE_S, TickResult
 from companion.mission import Mission, parse_mission
+from companion.replay.replay import tick_config_for
 
 SAMPLE_AGE_S = 0.004  # how long before the tick the newest sample arrived
 TICK_JITTER_S = 0.0007  # amplitude of the tick-time jitter
@@ -111,15 +112,20 @@ class _Vehicle:
     alpha: float  # the velocity's first-order lag over one tick (1: none)
     drift_en: tuple[float, float] = (0.0, 0.0)  # the velocity estimate's error (ENU): the position moves by it too
     speed_share: float = 1.0  # the share of the commanded velocity it settles to (< 1: flies slower than asked)
+    tail_share: float = 0.0  # the velocity loop's slow tail (docs/vehicle_model.md): its share of the error
+    tail_alpha: float = 0.0  # and its low-pass over one tick
+    f_en: tuple[float, float] = (0.0, 0.0)  # the error through that low-pass (ENU)
 
     @classmethod
     def at_start(cls, mission: Mission, offset_m: tuple[float, float], dt: float, lag_s: float,
-                 drift_en: tuple[float, float] = (0.0, 0.0), speed_share: float = 1.0) -> _Vehicle:
+                 drift_en: tuple[float, float] = (0.0, 0.0), speed_share: float = 1.0,
+                 tail: tuple[float, float] = (0.0, 1.0)) -> _Vehicle:
         """At ``offset_m`` from the path's start, flying along it at the mission's speed."""
         (x0, y0), heading = mission.path.start_xy_m, mission.path.start_heading_rad
         speed = mission.speed_m_s
         return cls(x0 + offset_m[0], y0 + offset_m[1], speed * math.cos(heading), speed * math.sin(heading),
-                   mission.altitude_m, dt, 1.0 - math.exp(-dt / lag_s) if lag_s > 0 else 1.0, drift_en, speed_share)
+                   mission.altitude_m, dt, 1.0 - math.exp(-dt / lag_s) if lag_s > 0 else 1.0, drift_en, speed_share,
+                   tail[0], 1.0 - math.exp(-dt / tail[1]))
 
     def follow(self, sp: VelocitySetpoint | AttitudeSetpoint) -> None:
         """One tick of the vehicle under the setpoint just sent."""
@@ -130,10 +136,15 @@ class _Vehicle:
             course = math.atan2(self.vn, self.ve) + omega * self.dt
             self.ve, self.vn = speed * math.cos(course), speed * math.sin(course)
         else:
-            # the vehicle follows the commanded horizontal velocity with a first-order lag
+            # the vehicle follows the commanded horizontal velocity with a first-order lag, less
+            # its slow tail's share of the error through the tail's low-pass
             cmd_ve, cmd_vn = self.speed_share * sp.vy_ned_m_s, self.speed_share * sp.vx_ned_m_s
-            self.ve += self.alpha * (cmd_ve - self.ve)
-            self.vn += self.alpha * (cmd_vn - self.vn)
+            e_e, e_n = cmd_ve - self.ve, cmd_vn - self.vn
+            fe, fn = self.f_en
+            fe, fn = fe + (e_e - fe) * self.tail_alpha, fn + (e_n - fn) * self.tail_alpha
+            self.f_en = (fe, fn)
+            self.ve += self.alpha * (e_e - self.tail_share * fe)
+            self.vn += self.alpha * (e_n - self.tail_share * fn)
         self.x += (self.ve + self.drift_en[0]) * self.dt
         self.y += (self.vn + self.drift_en[1]) * self.dt
 
@@ -213,6 +224,7 @@ def write_synthetic_flight(
     coast_ticks: int = 0,
     drift_en_m_s: tuple[float, float] = (0.0, 0.0), drift_tc_s: float = 0.0,
     speed_share: float = 1.0, speed_hold_tc_s: float = 0.0,
+    vehicle_tail: tuple[float, float] = (0.0, 1.0), compensate_tail: bool = False,
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -236,6 +248,8 @@ def write_synthetic_flight(
     speed_share, speed_hold_tc_s : the vehicle settles to ``speed_share`` times the commanded
         velocity (PX4 SIH flies about 0.86 of it); the loop holds the mission's speed with an
         integral time of ``speed_hold_tc_s`` (``--speed-hold-tc-s``; 0: off).
+    vehicle_tail, compensate_tail : the velocity loop's slow tail, share and time (share 0: none;
+        docs/vehicle_model.md), and whether the loop compensates it (``guidance.tail_compensation``).
 
     Returns a dict with ``ticks``, ``records`` and ``generate_s``.
     """
@@ -244,13 +258,11 @@ def write_synthetic_flight(
         mission = parse_mission(mission, "<synthetic>")
     write_mission_beside(tlog_path, mission.source_text)
     guidance = make_guidance(mission, rate_hz)
-    config = TickConfig(speed_m_s=mission.speed_m_s, rate_hz=rate_hz, altitude_m=mission.altitude_m,
-                        output=output, stale_s=stale_s, profile=mission.profile, drift_tc_s=drift_tc_s,
-                        speed_hold_tc_s=speed_hold_tc_s)
+    config = tick_config_for(mission, rate_hz, output, stale_s, drift_tc_s, False, speed_hold_tc_s,
+                             vehicle_tail if compensate_tail else (0.0, 0.0))
     dt = 1.0 / rate_hz
     autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
-
-    v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s, speed_share)
+    v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s, speed_share, vehicle_tail)
     driver = TickDriver(guidance, config, mission.path.start_heading_rad)
     n_ticks = int(round(duration_s * rate_hz))
     slow_steps = functools.partial(_SlowStep.run, coast_ticks)

@@ -214,3 +214,34 @@ def test_the_speed_hold_lengthens_the_setpoint_but_not_the_v_it_turns_with():
     r = compute_tick(law, 0, 0.0, sample(vx=0.0, vy=4.0), 0.0, CFG, prev_course_cmd_rad=0.0)
     assert math.isnan(r.debug[IDX["speed_hold_m_s"]]) and r.debug[IDX["speed_hold_tc_s"]] == 0.0
     assert math.hypot(r.setpoint.vx_ned_m_s, r.setpoint.vy_ned_m_s) == pytest.approx(5.0, abs=1e-12)
+
+
+def test_the_tail_compensation_adds_s_f_to_the_setpoint_records_it_and_a_hold_restarts_it():
+    """A copter reported flying 4 m/s east (NED y) for a setpoint of 5 east, no turn, PX4's tail:
+    the first report starts the clock; the second integrates one interval of the sent 5 less the
+    reported 4: f = 1 * (1 - exp(-0.02 / 0.958)), and the setpoint is 5 + 0.857 f east. The coast
+    sends the same correction; a hold resets it."""
+    from companion.guidance.tail_comp import TailCompensator
+
+    cfg = TickConfig(speed_m_s=5.0, rate_hz=50.0, altitude_m=10.0, tail_share=0.857, tail_tc_s=0.958)
+    tail = TailCompensator(cfg.tail_share, cfg.tail_tc_s)
+    law = ConstantTurn(a=0.0)
+    r0 = compute_tick(law, 0, 0.0, sample(vx=0.0, vy=4.0, t_ms=1000), 0.0, cfg, prev_course_cmd_rad=0.0, tail=tail)
+    assert r0.setpoint.vy_ned_m_s == pytest.approx(5.0, abs=1e-12) and r0.tail_comp_e_m_s == 0.0
+    r1 = compute_tick(law, 1, 0.02, sample(vx=0.0, vy=4.0, t_ms=1020), 0.0, cfg, prev_course_cmd_rad=0.0, tail=tail)
+    expected = 0.857 * 1.0 * (1.0 - math.exp(-0.02 / 0.958))
+    assert r1.tail_comp_e_m_s == pytest.approx(expected, abs=1e-12) and r1.tail_comp_n_m_s == pytest.approx(0.0)
+    assert r1.setpoint.vy_ned_m_s == pytest.approx(5.0 + expected, abs=1e-12)
+    row = r1.debug
+    assert row[IDX["tail_comp_e_m_s"]] == pytest.approx(expected)
+    assert (row[IDX["tail_share"]], row[IDX["tail_tc_s"]]) == (0.857, 0.958)
+    sp = coast_setpoint(r1, sample(vx=0.0, vy=4.0, t_ms=1040), 0.02, cfg, r1.course_cmd_rad)
+    assert sp.vy_ned_m_s == pytest.approx(5.0 + expected, abs=1e-12)
+    # a stale sample: a hold, and the compensation starts again from zero
+    h = compute_tick(law, 2, 0.04, sample(vx=0.0, vy=4.0, t_ms=1040), 1.0, cfg, prev_course_cmd_rad=0.0, tail=tail)
+    assert h.is_hold and math.isnan(h.tail_comp_e_m_s) and tail.f_m_s == (0.0, 0.0)
+    r3 = compute_tick(law, 3, 0.06, sample(vx=0.0, vy=4.0, t_ms=1060), 0.0, cfg, prev_course_cmd_rad=0.0, tail=tail)
+    assert r3.tail_comp_e_m_s == 0.0
+    # off (the default): NaN in the row
+    r = compute_tick(law, 0, 0.0, sample(vx=0.0, vy=4.0), 0.0, CFG, prev_course_cmd_rad=0.0)
+    assert math.isnan(r.debug[IDX["tail_comp_e_m_s"]]) and r.debug[IDX["tail_share"]] == 0.0

@@ -69,7 +69,8 @@ def test_every_key_name_carries_its_unit_or_is_unitless_by_nature():
     unitless = {"version", "name", "frame", "origin", "path", "guidance", "vehicle", "midcourse", "on_finish",
                 "start", "type", "y_of_x", "x_of_s", "y_of_s", "s_range", "closed", "method",
                 "k1_max", "k2_max", "d_limit_factor", "trigger", "segments", "vertical",
-                "along_track", "tail_share", "turn_accel_share", "accel_feedforward", "accel_ff_gain"}
+                "along_track", "tail_share", "turn_accel_share", "accel_feedforward", "accel_ff_gain",
+                "tail_compensation"}
     suffixes = ("_m", "_m_s", "_m_s2", "_m_s3", "_deg", "_hz", "_s", "_s2", "_s4")
 
     def walk(spec, where=""):
