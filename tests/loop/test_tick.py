@@ -242,6 +242,12 @@ def test_the_tail_compensation_adds_s_f_to_the_setpoint_records_it_and_a_hold_re
     assert h.is_hold and math.isnan(h.tail_comp_e_m_s) and tail.f_m_s == (0.0, 0.0)
     r3 = compute_tick(law, 3, 0.06, sample(vx=0.0, vy=4.0, t_ms=1060), 0.0, cfg, prev_course_cmd_rad=0.0, tail=tail)
     assert r3.tail_comp_e_m_s == 0.0
+    r4 = compute_tick(law, 4, 0.08, sample(vx=0.0, vy=4.0, t_ms=1080), 0.0, cfg, prev_course_cmd_rad=0.0, tail=tail)
+    assert r4.tail_comp_e_m_s > 0.0
+    # gathering speed (1 m/s, below half of V): no correction, and the compensation starts again
+    r5 = compute_tick(law, 5, 0.10, sample(vx=0.0, vy=1.0, t_ms=1100), 0.0, cfg, prev_course_cmd_rad=0.0, tail=tail)
+    assert (r5.tail_comp_n_m_s, r5.tail_comp_e_m_s) == (0.0, 0.0) and tail.f_m_s == (0.0, 0.0)
+    assert r5.setpoint.vy_ned_m_s == pytest.approx(5.0, abs=1e-12)
     # off (the default): NaN in the row
     r = compute_tick(law, 0, 0.0, sample(vx=0.0, vy=4.0), 0.0, CFG, prev_course_cmd_rad=0.0)
     assert math.isnan(r.debug[IDX["tail_comp_e_m_s"]]) and r.debug[IDX["tail_share"]] == 0.0
