@@ -224,7 +224,7 @@ def write_synthetic_flight(
     coast_ticks: int = 0,
     drift_en_m_s: tuple[float, float] = (0.0, 0.0), drift_tc_s: float = 0.0,
     speed_share: float = 1.0, speed_hold_tc_s: float = 0.0,
-    vehicle_tail: tuple[float, float] = (0.0, 1.0), compensate_tail: bool = False,
+    vehicle_tail: tuple[float, float] = (0.0, 1.0), compensated_tail: tuple[float, float] = (0.0, 0.0),
 ) -> dict:
     """Fly ``mission`` for ``duration_s`` against the kinematic vehicle and write the tlog.
 
@@ -248,8 +248,8 @@ def write_synthetic_flight(
     speed_share, speed_hold_tc_s : the vehicle settles to ``speed_share`` times the commanded
         velocity (PX4 SIH flies about 0.86 of it); the loop holds the mission's speed with an
         integral time of ``speed_hold_tc_s`` (``--speed-hold-tc-s``; 0: off).
-    vehicle_tail, compensate_tail : the velocity loop's slow tail, share and time (share 0: none;
-        docs/vehicle_model.md), and whether the loop compensates it (``guidance.tail_compensation``).
+    vehicle_tail, compensated_tail : the velocity loop's slow tail, share and time (share 0: none;
+        docs/vehicle_model.md), and the one the loop compensates (``guidance.tail_compensation``).
 
     Returns a dict with ``ticks``, ``records`` and ``generate_s``.
     """
@@ -259,7 +259,7 @@ def write_synthetic_flight(
     write_mission_beside(tlog_path, mission.source_text)
     guidance = make_guidance(mission, rate_hz)
     config = tick_config_for(mission, rate_hz, output, stale_s, drift_tc_s, False, speed_hold_tc_s,
-                             vehicle_tail if compensate_tail else (0.0, 0.0))
+                             compensated_tail)
     dt = 1.0 / rate_hz
     autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
     v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s, speed_share, vehicle_tail)
