@@ -144,9 +144,12 @@ def accel_feedforward_limit_m_s2(mission: Mission) -> float:
 #: (OFFBOARD, GUIDED): its share and time (s), identified from its SITL (docs/vehicle_model.md,
 #: "The slow tail"). ArduCopter's loop has none.
 VELOCITY_TAILS = {"px4": (0.857, 0.958)}
-#: The autopilots whose flights compensate it unless the mission says otherwise (not with the
-#: acceleration target, which the tail takes back too and the compensation does not run).
-TAIL_COMPENSATION_AUTOPILOTS = ("px4",)
+#: The autopilots whose flights compensate it unless the mission says otherwise (never with the
+#: acceleration target, which the tail takes back too and the compensation does not run). None
+#: yet: flown on the real PX4 with it, `predictive` rang on straights as the mock's PX4 does not,
+#: and the mock no longer predicted its racetrack and lawnmower within 15 % (docs/real_firmware.md,
+#: "PX4's slow tail compensated").
+TAIL_COMPENSATION_AUTOPILOTS: tuple[str, ...] = ()
 
 
 def velocity_tail(mission: Mission, autopilot: str | None, vehicle: str = "copter",
@@ -164,13 +167,14 @@ def velocity_tail(mission: Mission, autopilot: str | None, vehicle: str = "copte
     >>> def line(extra=""):  # a 50 m line at 5 m/s
     ...     return parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], "
     ...                          "[50, 0]]}" + extra + "}")
-    >>> velocity_tail(line(), "px4")
+    >>> on = ", guidance: {tail_compensation: true}"
+    >>> velocity_tail(line(on), "px4")
     ((0.857, 0.958), "px4's identified velocity loop")
-    >>> velocity_tail(line(), "ardupilot")[0], velocity_tail(line(), "px4", accel_ff=True)[0]
+    >>> velocity_tail(line(), "px4")[0], velocity_tail(line(on), "ardupilot")[0]  # off; no tail known
     ((0.0, 0.0), (0.0, 0.0))
-    >>> velocity_tail(line(", guidance: {tail_compensation: false}"), "px4")[0]
+    >>> velocity_tail(line(on), "px4", "rover")[0]
     (0.0, 0.0)
-    >>> velocity_tail(line(", vehicle: {a_max_m_s2: 4, lag_s: 0.4, tail_share: 0.5, tail_tc_s: 2}"), "px4")
+    >>> velocity_tail(line(on + ", vehicle: {a_max_m_s2: 4, lag_s: 0.4, tail_share: 0.5, tail_tc_s: 2}"), "px4")
     ((0.5, 2.0), "the mission's vehicle block")
     """
     on = mission.tail_compensation

@@ -369,8 +369,7 @@ MISSION = Object(
                     "tail_compensation": Field(Boolean(), "copters: compensate the slow tail of the "
                                                "autopilot's velocity loop (vehicle.tail_share and "
                                                "tail_tc_s, else the autopilot's identified one) "
-                                               "(absent: on for PX4 without the acceleration "
-                                               "target; docs/flying.md)"),
+                                               "(absent: off; docs/flying.md)"),
                 },
             ),
             "guidance tuning", default={}),
