@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import math
 
+from companion.guidance.types import MAX_TAIL_SHARE
+
 #: Intervals longer than this (s) between two reports restart the compensation from zero (a link
 #: gap or a hold: what the vehicle's loop did meanwhile is not known).
 MAX_GAP_S = 0.5
@@ -46,7 +48,7 @@ class TailCompensator:
 
     Parameters
     ----------
-    share : the tail's share ``s`` of the error, ``0 < share <= 0.95``.
+    share : the tail's share ``s`` of the error, ``0 < share <= MAX_TAIL_SHARE`` (0.95).
     tc_s : the tail's time ``tc`` (s), > 0.
 
     Examples
@@ -63,7 +65,7 @@ class TailCompensator:
     """
 
     def __init__(self, share: float, tc_s: float):
-        for name, value, upper in (("share", share, 0.95), ("tc_s", tc_s, math.inf)):
+        for name, value, upper in (("share", share, MAX_TAIL_SHARE), ("tc_s", tc_s, math.inf)):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value <= upper):
                 raise ValueError(f"{name}: expected a number in (0, {upper:g}], got {value!r}")
         self.share = float(share)
@@ -110,7 +112,6 @@ class TailCompensator:
         c1, c2 = self.share * self.f_m_s[0], self.share * self.f_m_s[1]
         size = math.hypot(c1, c2)
         limit = MAX_SHARE * speed_m_s if math.isfinite(speed_m_s) and speed_m_s > 0 else 0.0
-        if size > limit:
-            scale = limit / size if size > 0 else 0.0
-            c1, c2 = c1 * scale, c2 * scale
+        if size > limit:  # then size > 0
+            c1, c2 = c1 * limit / size, c2 * limit / size
         return c1, c2

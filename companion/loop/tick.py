@@ -59,7 +59,7 @@ from companion.geometry import frames
 from companion.guidance.drift import DriftEstimator
 from companion.guidance.speed_hold import SpeedHold
 from companion.guidance.tail_comp import TailCompensator
-from companion.guidance.types import GuidanceOutput, VehicleState, frozen_maker
+from companion.guidance.types import MAX_TAIL_SHARE, GuidanceOutput, VehicleState, frozen_maker
 from companion.io.setpoints import (
     AltitudeHold,
     AttitudeSetpoint,
@@ -173,8 +173,8 @@ class TickConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
-        if self.tail_share > 0 and not (self.tail_share <= 0.95 and self.tail_tc_s > 0):
-            raise ValueError(f"tail_share, tail_tc_s: expected a share <= 0.95 and a time > 0, "
+        if self.tail_share > 0 and not (self.tail_share <= MAX_TAIL_SHARE and self.tail_tc_s > 0):
+            raise ValueError(f"tail_share, tail_tc_s: expected a share <= {MAX_TAIL_SHARE} and a time > 0, "
                              f"got {self.tail_share!r}, {self.tail_tc_s!r}")
 
     @property
