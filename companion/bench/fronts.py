@@ -37,15 +37,16 @@ SIDES = ("real", "mock")
 
 def flown_config(mission_file: str, fly_args: list[str] | None, method: str | None = None) -> dict:
     """What a bench flight flew: the mission's name, its law (``method`` replacing the mission's,
-    as ``bench sitl --method`` does; ``lambda_s4`` for ``predictive``), its acceleration-target
-    setting and the extra ``companion fly`` options (None: unknown)."""
+    as ``bench sitl --method`` does; ``lambda_s4`` for ``predictive`` when the mission states it,
+    else None: the flight's own default, :func:`companion.loop.limits.mission_for_tail`), its
+    acceleration-target setting and the extra ``companion fly`` options (None: unknown)."""
     from companion.mission.loader import load_mission, mission_text_with_method, parse_mission
 
     m = load_mission(mission_file) if method is None else \
         parse_mission(mission_text_with_method(mission_file, method), str(mission_file))
     law = m.guidance.method
     return {"mission_name": m.name, "method": law,
-            "lambda_s4": m.guidance.lambda_s4 if law == "predictive" else None,
+            "lambda_s4": m.guidance.lambda_s4 if law == "predictive" and m.lambda_stated else None,
             "accel_feedforward": m.accel_feedforward, "fly_args": None if fly_args is None else list(fly_args)}
 
 

@@ -26,6 +26,10 @@ DEFAULT_METHOD = "predictive"
 PAPER_METHOD = "corrector"
 #: ``predictive``'s weight of the squared acceleration in its rollout cost (s^4): every default of it.
 DEFAULT_LAMBDA_S4 = 0.03
+#: ``predictive``'s lambda on a flight that compensates the velocity loop's slow tail, when the mission
+#: states none (:func:`companion.loop.limits.mission_for_tail`). Chosen on the real PX4 on missions
+#: outside the gallery (docs/real_firmware.md, "The tail compensated by default on PX4").
+TAIL_COMPENSATED_LAMBDA_S4 = 0.3
 PHASES = ("midcourse", "close_range", "finished")
 MIDCOURSE_TRIGGERS = ("auto", "paper", "off")
 

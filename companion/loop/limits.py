@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
+from companion.guidance.types import TAIL_COMPENSATED_LAMBDA_S4
 from companion.io.setpoints import G_M_S2
 from companion.mission.model import Mission
 from companion.mission.turns import slowed_for_turns
@@ -145,11 +146,10 @@ def accel_feedforward_limit_m_s2(mission: Mission) -> float:
 #: "The slow tail"). ArduCopter's loop has none.
 VELOCITY_TAILS = {"px4": (0.857, 0.958)}
 #: The autopilots whose flights compensate it unless the mission says otherwise (never with the
-#: acceleration target, which the tail takes back too and the compensation does not run). None
-#: yet: flown on the real PX4 with it, `predictive` rang on straights as the mock's PX4 does not,
-#: and the mock no longer predicted its racetrack and lawnmower within 15 % (docs/real_firmware.md,
-#: "PX4's slow tail compensated").
-TAIL_COMPENSATION_AUTOPILOTS: tuple[str, ...] = ()
+#: acceleration target, which the tail takes back too and the compensation does not run): PX4,
+#: whose copter then flies the speed asked and the laws' first-order model (docs/real_firmware.md,
+#: "PX4's slow tail compensated" and "The tail compensated by default on PX4").
+TAIL_COMPENSATION_AUTOPILOTS: tuple[str, ...] = ("px4",)
 
 
 def velocity_tail(mission: Mission, autopilot: str | None, vehicle: str = "copter",
@@ -170,7 +170,12 @@ def velocity_tail(mission: Mission, autopilot: str | None, vehicle: str = "copte
     >>> on = ", guidance: {tail_compensation: true}"
     >>> velocity_tail(line(on), "px4")
     ((0.857, 0.958), "px4's identified velocity loop")
-    >>> velocity_tail(line(), "px4")[0], velocity_tail(line(on), "ardupilot")[0]  # off; no tail known
+    >>> velocity_tail(line(), "px4")[0]  # PX4's default
+    (0.857, 0.958)
+    >>> off = ", guidance: {tail_compensation: false}"
+    >>> velocity_tail(line(off), "px4")[0], velocity_tail(line(), "px4", accel_ff=True)[0]
+    ((0.0, 0.0), (0.0, 0.0))
+    >>> velocity_tail(line(on), "ardupilot")[0], velocity_tail(line(), "ardupilot")[0]  # no tail known; off
     ((0.0, 0.0), (0.0, 0.0))
     >>> velocity_tail(line(on), "px4", "rover")[0]
     (0.0, 0.0)
@@ -188,6 +193,36 @@ def velocity_tail(mission: Mission, autopilot: str | None, vehicle: str = "copte
         return (mission.vehicle.tail_share, mission.vehicle.tail_tc_s), "the mission's vehicle block"
     tail = VELOCITY_TAILS.get(autopilot or "")
     return (tail, f"{autopilot}'s identified velocity loop") if tail is not None else ((0.0, 0.0), "")
+
+
+def mission_for_tail(mission: Mission, compensates_tail: bool) -> tuple[Mission, str]:
+    """The mission a flight flies given whether it compensates the velocity loop's slow tail, and
+    the log line saying what changed ("" for nothing).
+
+    ``predictive`` at :data:`~companion.guidance.types.TAIL_COMPENSATED_LAMBDA_S4` when the
+    flight compensates the tail and the mission states no ``guidance.lambda_s4``: on the real PX4,
+    so compensated, the default lambda answered the position estimate's slow wander and rang on
+    straights at about 0.3 Hz (docs/real_firmware.md, "The tail compensated by default on PX4").
+
+    >>> from companion.mission.loader import parse_mission
+    >>> def line(guidance):  # a 50 m line at 5 m/s with this guidance: block
+    ...     return parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], "
+    ...                          "[50, 0]]}, guidance: " + guidance + "}")
+    >>> m, why = mission_for_tail(line("{method: predictive}"), True)
+    >>> m.guidance.lambda_s4, why
+    (0.3, 'predictive: lambda 0.3 s^4 (the tail compensated; the mission states none)')
+    >>> [mission_for_tail(line(g), on)[0].guidance.lambda_s4 for g, on in (
+    ...     ("{method: predictive}", False), ("{method: predictive, lambda_s4: 0.03}", True))]
+    [0.03, 0.03]
+    >>> mission_for_tail(line("{method: pure_pursuit}"), True)[1]
+    ''
+    """
+    g = mission.guidance
+    if not compensates_tail or mission.lambda_stated or g.method != "predictive":
+        return mission, ""
+    guidance = dataclasses.replace(g, lambda_s4=TAIL_COMPENSATED_LAMBDA_S4)
+    return (dataclasses.replace(mission, guidance=guidance),
+            f"predictive: lambda {TAIL_COMPENSATED_LAMBDA_S4:g} s^4 (the tail compensated; the mission states none)")
 
 
 def _with_limit(mission: Mission, limit: AutopilotLimit | None) -> tuple[Mission, str]:

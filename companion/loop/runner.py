@@ -59,7 +59,7 @@ from companion.io.link import (
 from companion.io.setpoints import G_M_S2
 from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_beside
 from companion.loop.driver import make_guidance
-from companion.loop.limits import accel_feedforward_max, apply_autopilot_limits, velocity_tail
+from companion.loop.limits import accel_feedforward_max, apply_autopilot_limits, mission_for_tail, velocity_tail
 from companion.loop.flight import AutopilotClock, FlightLoop, FlightRecord
 from companion.loop.health import HealthMonitor, HealthOptions, turn_allowance_m
 from companion.loop.profiles import AutopilotProfile, profile_for
@@ -352,6 +352,9 @@ class FlightRunner:
         if self._guidance is None:  # the autopilot's own acceleration limit (companion.loop.limits)
             self.mission = apply_autopilot_limits(s.link, self.mission, s.event, s.idle)
             config = self._tick_config(s)  # again: the limit may slow the path's turns (a new profile)
+            self.mission, line = mission_for_tail(self.mission, config.compensates_tail)
+            if line:
+                s.event(line)
         announce_setpoint_options(s.event, self.mission, s.link.info, config)
         guidance = self._guidance or make_guidance(self.mission, self.opt.rate_hz)
         profile = profile_for(s.link.info, s)

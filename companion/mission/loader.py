@@ -27,7 +27,7 @@ from companion.errors import MissionError
 from companion.geometry import geodetic
 from companion.geometry.paths import Path, function_path, parametric_path, waypoint_path
 from companion.geometry.profile import PathProfile, ProfileLimits, build_profile, knots_table
-from companion.guidance.types import VEHICLE_MODEL_KEYS, GuidanceParams, VehicleModel
+from companion.guidance.types import DEFAULT_LAMBDA_S4, VEHICLE_MODEL_KEYS, GuidanceParams, VehicleModel
 from companion.mission import schema
 from companion.mission.expressions import ExpressionError, compile_expression
 from companion.mission.model import GeodeticOrigin, Mission, StartState
@@ -463,6 +463,7 @@ class _Builder(_Checks):
             profile_limits=self.build_profile_limits() or ProfileLimits(),
             accel_feedforward=(doc.get("guidance") or {}).get("accel_feedforward"),
             tail_compensation=(doc.get("guidance") or {}).get("tail_compensation"),
+            lambda_stated=(doc.get("guidance") or {}).get("lambda_s4") is not None,
         )
 
     def build_vehicle(self) -> VehicleModel | None:
@@ -502,10 +503,12 @@ class _Builder(_Checks):
         }
         if any(v is None for v in values.values()):
             return None  # already reported by the schema
-        if g.get("rollout_tau_s") is None or g.get("lambda_s4") is None:
+        if g.get("rollout_tau_s") is None:
             return None  # already reported by the schema
         values["rollout_tau_s"] = g["rollout_tau_s"]
-        values["lambda_s4"] = g["lambda_s4"]
+        # Absent: the default (a flight may choose another: Mission.lambda_stated). An unusable
+        # value is None here too, but the schema reported it.
+        values["lambda_s4"] = DEFAULT_LAMBDA_S4 if g.get("lambda_s4") is None else g["lambda_s4"]
         # Absent: no limit. (An unusable value is None here too, but the schema reported it.)
         values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
         values["period_s"] = g.get("period_s")  # absent: the baseline's own default

@@ -76,6 +76,10 @@ class Mission:
     tail_compensation : ``guidance.tail_compensation``: a velocity-output flight compensates the
         velocity loop's slow tail (:mod:`companion.guidance.tail_comp`); None (absent): the
         autopilot's default (:func:`companion.loop.limits.velocity_tail`).
+    lambda_stated : whether the mission states ``guidance.lambda_s4`` (a mission built in code does);
+        when it does not, a flight that compensates the slow tail flies ``predictive`` at
+        :data:`companion.guidance.types.TAIL_COMPENSATED_LAMBDA_S4`
+        (:func:`companion.loop.limits.mission_for_tail`).
     profile_limits : the ``vertical:`` and ``along_track:`` limits
         (:class:`companion.geometry.profile.ProfileLimits`): those ``profile`` was smoothed to, and
         those a flight slows down for turns with (:func:`companion.mission.turns.slowed_for_turns`)
@@ -99,6 +103,7 @@ class Mission:
     profile_limits: ProfileLimits = field(default_factory=ProfileLimits)
     accel_feedforward: bool | None = None
     tail_compensation: bool | None = None
+    lambda_stated: bool = True
 
     def __post_init__(self) -> None:
         if self.on_finish not in ON_FINISH:

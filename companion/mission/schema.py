@@ -20,7 +20,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from companion.guidance.types import DEFAULT_LAMBDA_S4, DEFAULT_METHOD, METHODS, MIDCOURSE_TRIGGERS
+from companion.guidance.types import (
+    DEFAULT_LAMBDA_S4,
+    DEFAULT_METHOD,
+    METHODS,
+    MIDCOURSE_TRIGGERS,
+    TAIL_COMPENSATED_LAMBDA_S4,
+)
 from companion.mission.expressions import ExpressionError, compile_expression
 from companion.mission.model import ON_FINISH
 
@@ -357,8 +363,10 @@ MISSION = Object(
                                            default=0.0),
                     "lambda_s4": Field(Number(minimum=0, maximum=100), "predictive: weight of the "
                                        "squared acceleration against the squared cross-track error "
-                                       "(s^4); smaller tracks tighter, larger flies smoother",
-                                       default=DEFAULT_LAMBDA_S4),
+                                       "(s^4); smaller tracks tighter, larger flies smoother "
+                                       f"(absent: {DEFAULT_LAMBDA_S4:g}, and "
+                                       f"{TAIL_COMPENSATED_LAMBDA_S4:g} on a flight that compensates "
+                                       "the velocity loop's slow tail; docs/flying.md)"),
                     "a_max_m_s2": Field(Number(exclusive_minimum=0, maximum=100), "predictive: the "
                                         "vehicle's lateral-acceleration limit; every command is "
                                         "clipped to it (absent: no limit)"),
@@ -369,7 +377,8 @@ MISSION = Object(
                     "tail_compensation": Field(Boolean(), "copters: compensate the slow tail of the "
                                                "autopilot's velocity loop (vehicle.tail_share and "
                                                "tail_tc_s, else the autopilot's identified one) "
-                                               "(absent: off; docs/flying.md)"),
+                                               "(absent: on for PX4, off otherwise; never with the "
+                                               "acceleration target; docs/flying.md)"),
                 },
             ),
             "guidance tuning", default={}),

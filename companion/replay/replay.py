@@ -45,7 +45,12 @@ from companion.io.logread import LogWarning
 from companion.io.tlog import MISSION_SUFFIX, mission_path_beside
 from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint, uses_accel_target
 from companion.loop.driver import TickDriver, make_guidance
-from companion.loop.limits import accel_feedforward_limit_m_s2, limit_from_params, mission_with_limit
+from companion.loop.limits import (
+    accel_feedforward_limit_m_s2,
+    limit_from_params,
+    mission_for_tail,
+    mission_with_limit,
+)
 from companion.loop.tick import DEFAULT_STALE_S, TickConfig
 from companion.mission import Mission, load_mission
 from companion.mission.placement import onto_autopilot_origin
@@ -295,6 +300,7 @@ def replay_flight(
                                  recorded_drift_tc_s(flight.ticks), flight_sent_accel(flight),
                                  recorded_speed_hold_tc_s(flight.ticks), recorded_tail(flight.ticks))
     config = config or tick_config_for(mission, rate_hz, flight_output(flight))
+    mission = mission_for_tail(mission, config.compensates_tail)[0]  # as the flight chose its lambda
     guidance = guidance_factory(mission, rate_hz)
     replay = _Replay(flight, mission, tolerance, config, guidance)
     replay.run(progress)

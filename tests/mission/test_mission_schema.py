@@ -49,7 +49,14 @@ def test_guidance_defaults_agree_with_guidance_params():
     assert g["k2_max"].default == defaults.k2_max
     assert g["d_limit_factor"].default == defaults.d_limit_factor
     assert g["rollout_tau_s"].default == defaults.rollout_tau_s
-    assert g["lambda_s4"].default == defaults.lambda_s4
+    # lambda_s4 has no schema default: absent, the loader fills GuidanceParams' and notes that the
+    # mission stated none (a flight that compensates the slow tail then flies another).
+    assert "default" not in json.dumps(json_schema()["properties"]["guidance"]["properties"]["lambda_s4"])
+    m_line = parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], [50, 0]]}}")
+    assert m_line.guidance.lambda_s4 == defaults.lambda_s4 and not m_line.lambda_stated
+    stated = parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], [50, 0]]}, "
+                           "guidance: {lambda_s4: 0.03}}")
+    assert stated.guidance.lambda_s4 == 0.03 and stated.lambda_stated
     assert m["circle_radius_m"].default == defaults.circle_radius_m
     assert m["trigger"].default == defaults.midcourse_trigger
 
