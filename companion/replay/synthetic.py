@@ -42,6 +42,7 @@ from companion.io.setpoints import AttitudeSetpoint, VelocitySetpoint
 from companion.io.state import PositionSample
 from companion.io.tlog import TlogWriter, write_mission_beside
 from companion.loop.driver import TickDriver, make_guidance
+from companion.loop.limits import mission_for_tail
 from companion.loop.tick import DEFAULT_STALE_S, TickResult
 from companion.mission import Mission, parse_mission
 from companion.replay.replay import tick_config_for
@@ -257,9 +258,10 @@ def write_synthetic_flight(
     if isinstance(mission, str):
         mission = parse_mission(mission, "<synthetic>")
     write_mission_beside(tlog_path, mission.source_text)
-    guidance = make_guidance(mission, rate_hz)
     config = tick_config_for(mission, rate_hz, output, stale_s, drift_tc_s, False, speed_hold_tc_s,
                              compensated_tail)
+    mission = mission_for_tail(mission, config.compensates_tail)[0]  # as the runner chooses lambda
+    guidance = make_guidance(mission, rate_hz)
     dt = 1.0 / rate_hz
     autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
     v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s, speed_share, vehicle_tail)

@@ -65,3 +65,29 @@ def test_a_tail_compensated_wrongly_stays_stable(tmp_path, vehicle_tail):
     assert np.max(np.abs(last)) < 0.1
     if vehicle_tail[0] > 0:
         assert rms(comp) < rms(plain)
+
+
+def test_predictive_flies_the_tail_compensated_lambda_unless_the_mission_states_one(tmp_path):
+    """A flight that compensates the tail flies ``predictive`` at TAIL_COMPENSATED_LAMBDA_S4 when
+    the mission states no lambda: the same track as a mission stating that lambda, another than
+    one stating the default; replay makes the same choice from the tail the log records."""
+    from companion.guidance.types import DEFAULT_LAMBDA_S4, TAIL_COMPENSATED_LAMBDA_S4
+    from companion.mission import parse_mission
+
+    predictive = RACETRACK_MISSION.replace("method: corrector", "method: predictive")
+    assert "lambda_s4" not in predictive and "method: predictive" in predictive
+
+    def fly(name: str, text: str) -> np.ndarray:
+        path = tmp_path / f"{name}.tlog"
+        write_synthetic_flight(path, mission=text, duration_s=20.0, start_offset_m=(0.0, 0.0),
+                               vehicle_lag_s=LAG_S, vehicle_tail=TAIL, compensated_tail=TAIL)
+        return np.array([tk.debug_value("crosstrack_m") for tk in read_flight(path).ticks if tk.debug is not None])
+
+    unstated = fly("unstated", predictive)
+    stated = lambda lam: predictive.replace("method: predictive", f"method: predictive, lambda_s4: {lam}")  # noqa: E731
+    assert np.array_equal(unstated, fly("tail-lambda", stated(TAIL_COMPENSATED_LAMBDA_S4)))
+    assert not np.allclose(unstated, fly("default-lambda", stated(DEFAULT_LAMBDA_S4)), atol=1e-3)
+    assert replay_log(tmp_path / "unstated.tlog").to_json()["within_tolerance"] is True
+    # replayed with the default lambda stated, the same log diverges
+    j = replay_log(tmp_path / "unstated.tlog", parse_mission(stated(DEFAULT_LAMBDA_S4), "stated.yaml")).to_json()
+    assert j["within_tolerance"] is False
