@@ -258,10 +258,8 @@ def write_synthetic_flight(
     if isinstance(mission, str):
         mission = parse_mission(mission, "<synthetic>")
     write_mission_beside(tlog_path, mission.source_text)
-    config = tick_config_for(mission, rate_hz, output, stale_s, drift_tc_s, False, speed_hold_tc_s,
-                             compensated_tail)
-    mission = mission_for_tail(mission, config.compensates_tail)[0]  # as the runner chooses lambda
-    guidance = make_guidance(mission, rate_hz)
+    config = tick_config_for(mission, rate_hz, output, stale_s, drift_tc_s, False, speed_hold_tc_s, compensated_tail)
+    guidance = make_guidance(mission_for_tail(mission, config.compensates_tail)[0], rate_hz)  # the runner's lambda
     dt = 1.0 / rate_hz
     autopilot, companion = PacketEncoder(1, 1), PacketEncoder(1, 191)
     v = _Vehicle.at_start(mission, start_offset_m, dt, vehicle_lag_s, drift_en_m_s, speed_share, vehicle_tail)
