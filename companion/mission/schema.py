@@ -377,8 +377,8 @@ MISSION = Object(
                     "tail_compensation": Field(Boolean(), "copters: compensate the slow tail of the "
                                                "autopilot's velocity loop (vehicle.tail_share and "
                                                "tail_tc_s, else the autopilot's identified one) "
-                                               "(absent: on for PX4, off otherwise; never with the "
-                                               "acceleration target; docs/flying.md)"),
+                                               "(absent: on for PX4 unless the acceleration target "
+                                               "is sent, off otherwise; docs/flying.md)"),
                 },
             ),
             "guidance tuning", default={}),
