@@ -51,12 +51,12 @@ def test_guidance_defaults_agree_with_guidance_params():
     assert g["rollout_tau_s"].default == defaults.rollout_tau_s
     # lambda_s4 has no schema default: absent, the loader fills GuidanceParams' and notes that the
     # mission stated none (a flight that compensates the slow tail then flies another).
-    assert "default" not in json.dumps(json_schema()["properties"]["guidance"]["properties"]["lambda_s4"])
+    assert "default" not in json_schema()["properties"]["guidance"]["properties"]["lambda_s4"]
     m_line = parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], [50, 0]]}}")
     assert m_line.guidance.lambda_s4 == defaults.lambda_s4 and not m_line.lambda_stated
     stated = parse_mission("{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], [50, 0]]}, "
-                           "guidance: {lambda_s4: 0.03}}")
-    assert stated.guidance.lambda_s4 == 0.03 and stated.lambda_stated
+                           "guidance: {lambda_s4: 0.5}}")  # not the default: the value read is the one stated
+    assert stated.guidance.lambda_s4 == 0.5 and stated.lambda_stated
     assert m["circle_radius_m"].default == defaults.circle_radius_m
     assert m["trigger"].default == defaults.midcourse_trigger
 
