@@ -63,6 +63,9 @@ from companion.errors import CompanionError, MissionError
 
 REACH_TOL_M = 1.0
 REACH_HOLD_S = 2.0
+#: The join: the first seconds of the measured window (from the first touch of the band), where
+#: ``d_rms_join_m`` is counted; ``d_rms_after_join_m`` counts the rest (:func:`join_split`).
+JOIN_S = 4.0
 #: Bumped when what a row measures changes (2: ``reach_s`` entered to stay, ``touch_s``).
 MEASUREMENT_VERSION = 2
 END_MARGIN_M = 20.0
@@ -285,6 +288,22 @@ def first_stay_index(inside: np.ndarray, n_hold: int) -> int | None:
     return None
 
 
+def join_split(t_s: np.ndarray, d_m: np.ndarray, join_s: float = JOIN_S) -> tuple[float, float]:
+    """A window's d_rms split at ``join_s`` after its first sample, in quadrature: ``(join,
+    after)``, each the root of its samples' sum of squares over the whole window's count, so
+    that ``join^2 + after^2 = d_rms^2``. It says which part of a window's error is the join.
+
+    >>> join_split(np.array([0.0, 1.0, 2.0, 3.0]), np.array([2.0, 2.0, 1.0, -1.0]), 2.0)
+    (1.4142135623730951, 0.7071067811865476)
+    """
+    t, d = np.asarray(t_s, dtype=float), np.asarray(d_m, dtype=float)
+    if d.size == 0:
+        return math.nan, math.nan
+    join = t < t[0] + join_s
+    return (math.sqrt(float(np.sum(d[join] ** 2)) / d.size),
+            math.sqrt(float(np.sum(d[~join] ** 2)) / d.size))
+
+
 def run_one(task: Task) -> dict:
     """Simulate one (scenario, model, law, setting) and measure it; returns one row."""
     from companion.sim.metrics import tracking_metrics
@@ -301,14 +320,16 @@ def run_one(task: Task) -> dict:
            "knob": KNOBS[law]}
     if touched.size == 0:
         row.update(d_rms_m=math.nan, d_max_m=math.nan, a_rms_m_s2=math.nan, a_max_m_s2=math.nan,
-                   reach_s=math.nan, touch_s=math.nan)
+                   reach_s=math.nan, touch_s=math.nan, d_rms_join_m=math.nan, d_rms_after_join_m=math.nan)
     else:
         i0 = int(touched[0])
         m = tracking_metrics(res.t_s[i0:], d[i0:], res.a_achieved_m_s2[i0:])  # what the vehicle flew
         stay = first_stay_index(inside, int(round(REACH_HOLD_S * RATE_HZ)))
+        join, after = join_split(res.t_s[i0:], d[i0:])
         row.update(d_rms_m=m["d_rms_m"], d_max_m=m["d_max_m"], a_rms_m_s2=m["a_rms_m_s2"],
                    a_max_m_s2=m["a_max_m_s2"], touch_s=float(res.t_s[i0]),
-                   reach_s=float(res.t_s[stay]) if stay is not None else math.nan)
+                   reach_s=float(res.t_s[stay]) if stay is not None else math.nan,
+                   d_rms_join_m=join, d_rms_after_join_m=after)
     row["duration_s"] = float(res.t_s[-1]) if res.t_s.size else 0.0
     row["wall_s"] = wall
     return row
@@ -367,6 +388,25 @@ def points_below_predictive(fronts: dict) -> list[dict]:
     return beaten
 
 
+def where_lost(rows: list[dict], point: dict) -> str | None:
+    """Where predictive loses to a baseline point below its front (one of
+    :func:`points_below_predictive`'s, ``rows`` its scenario's and model's): ``"join"`` when most
+    of the difference in the squared error, between predictive's run nearest the point's a_rms
+    and the point's own run, lies in the join (:func:`join_split`), else ``"after"``; None
+    without the split (rows from an older file)."""
+    base = [r for r in rows if r["law"] == point["law"] and r["a_rms_m_s2"] == point["a_rms_m_s2"]
+            and r["d_rms_m"] == point["d_rms_m"]]
+    pred = [r for r in rows if r["law"] == "predictive" and math.isfinite(r["a_rms_m_s2"])]
+    if not base or not pred:
+        return None
+    near = min(pred, key=lambda r: abs(r["a_rms_m_s2"] - point["a_rms_m_s2"]))
+    parts = [(r.get("d_rms_join_m", math.nan), r.get("d_rms_after_join_m", math.nan)) for r in (near, base[0])]
+    if not all(math.isfinite(v) for pair in parts for v in pair):
+        return None
+    (pj, pa), (bj, ba) = parts
+    return "join" if pj * pj - bj * bj >= pa * pa - ba * ba else "after"
+
+
 def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> list[dict]:
     """Per scenario and model: which law tracks best at the a_rms of our default tuning.
 
@@ -390,6 +430,9 @@ def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> li
         best_law, best_d = ranked[0] if ranked else (None, None)
         runner = ranked[1] if len(ranked) > 1 else (None, None)
         beaten = points_below_predictive(laws)
+        group = [r for r in rows if r["scenario"] == scenario and r["model"] == model]
+        for point in beaten:
+            point["lost_in"] = where_lost(group, point)
         entry.update(
             a_rms_ref_m_s2=a_ref, best_law=best_law, best_d_rms_m=best_d,
             runner_up=runner[0], runner_up_d_rms_m=runner[1],
@@ -482,8 +525,10 @@ def render_tables(rows: list[dict], summary: list[dict]) -> str:
         margin = s.get("margin_m")
         beaten = s.get("predictive_beaten_at", [])
         beaten_txt = ", ".join(sorted({b["law"] for b in beaten})) or "none"
+        in_join = sum(b.get("lost_in") == "join" for b in beaten)
+        join_txt = f" ({in_join} lost in the join)" if in_join else ""
         lines.append(f"{s['scenario']:18s} {s['model']:6s} {_fmt(s.get('a_rms_ref_m_s2'), 2):>6s} {cells}  "
-                     f"{best} ({_fmt(margin)})  {len(beaten)}: {beaten_txt}")
+                     f"{best} ({_fmt(margin)})  {len(beaten)}: {beaten_txt}{join_txt}")
     return "\n".join(lines)
 
 

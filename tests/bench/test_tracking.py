@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from bench_scenes import LinePath
-from companion.bench.tracking import (REFINE_LAMBDA_FLOOR_S4, ModelSpec, Task, fly_task, front_at, named_spec,
-                                      pareto_front, refinement_settings, run_one, summarise, true_crosstrack_m)
+from companion.bench.tracking import (JOIN_S, REFINE_LAMBDA_FLOOR_S4, ModelSpec, Task, fly_task, front_at,
+                                      join_split, named_spec, pareto_front, refinement_settings, run_one,
+                                      summarise, true_crosstrack_m, where_lost)
 from companion.cli.main import main
 
 
@@ -165,3 +166,47 @@ def test_reach_is_where_a_flight_enters_the_band_to_stay_touch_where_it_first_en
         else:
             assert row["d_max_m"] <= 1.0 or np.all(d[(t >= row["touch_s"]) & (t <= row["touch_s"] + 2.0 - 1e-9)] <= 1.0)
     assert seen_swing
+
+
+def test_join_split_counts_the_first_seconds_apart_in_quadrature():
+    # 10 s at 50 Hz from t = 3 s: 1 m for the first 4 s (200 samples), 0.1 m after (300).
+    t = 3.0 + np.arange(500) * 0.02
+    d = np.where(t < 7.0, 1.0, -0.1)
+    join, after = join_split(t, d, 4.0)
+    assert join == pytest.approx(math.sqrt(200 * 1.0 / 500))
+    assert after == pytest.approx(math.sqrt(300 * 0.01 / 500))
+    assert join ** 2 + after ** 2 == pytest.approx(float(np.mean(d ** 2)))
+    assert all(math.isnan(v) for v in join_split(np.zeros(0), np.zeros(0)))
+
+
+def test_bench_rows_split_their_error_at_the_join():
+    # The far start's predictive flight: its window's d_rms is the join's and the rest's in
+    # quadrature, the join counted over the JOIN_S seconds after the first touch of the band.
+    task = Task(named_spec("far_start"), ModelSpec("lag"), "predictive", 0.03)
+    row = run_one(task)
+    path, res = fly_task(task)
+    d = true_crosstrack_m(path, res.x_m, res.y_m)
+    window = res.t_s >= row["touch_s"] - 1e-9
+    join = window & (res.t_s < row["touch_s"] + JOIN_S)
+    assert row["d_rms_join_m"] == pytest.approx(math.sqrt(np.sum(d[join] ** 2) / np.sum(window)))
+    assert row["d_rms_join_m"] ** 2 + row["d_rms_after_join_m"] ** 2 == pytest.approx(row["d_rms_m"] ** 2)
+
+
+def test_a_point_below_the_front_says_whether_predictive_lost_it_in_the_join():
+    def rows(pred_parts, base_parts):
+        out = []
+        for law, setting, a, (j, r) in (("predictive", 0.03, 1.0, pred_parts), ("npfg", 6.0, 1.0, base_parts)):
+            out.append({"scenario": "s", "model": "lag", "law": law, "setting": setting, "a_rms_m_s2": a,
+                        "d_rms_m": math.hypot(j, r), "d_rms_join_m": j, "d_rms_after_join_m": r})
+        return out
+
+    # predictive 0.30 m in the join, 0.01 after; npfg 0.10 and 0.05: lost in the join.
+    (s,) = summarise(rows((0.30, 0.01), (0.10, 0.05)), default_lambda=0.03)
+    assert [b["lost_in"] for b in s["predictive_beaten_at"]] == ["join"]
+    # predictive 0.05 in the join, 0.30 after; npfg 0.10 and 0.10: lost after it.
+    (s,) = summarise(rows((0.05, 0.30), (0.10, 0.10)), default_lambda=0.03)
+    assert [b["lost_in"] for b in s["predictive_beaten_at"]] == ["after"]
+    # rows without the split (an older campaign file): not said.
+    old = [{k: v for k, v in r.items() if "join" not in k} for r in rows((0.30, 0.01), (0.10, 0.05))]
+    point = {"law": "npfg", "a_rms_m_s2": 1.0, "d_rms_m": old[1]["d_rms_m"]}
+    assert where_lost(old, point) is None
