@@ -415,9 +415,12 @@ def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> li
     """
     out = []
     fronts = fronts_by_group(rows)
+    by_group: dict[tuple[str, str], list[dict]] = {}
+    for r in rows:
+        by_group.setdefault((r["scenario"], r["model"]), []).append(r)
     for (scenario, model), laws in fronts.items():
-        ref = [r for r in rows if r["scenario"] == scenario and r["model"] == model
-               and r["law"] == "predictive" and r["setting"] == default_lambda]
+        group = by_group[(scenario, model)]
+        ref = [r for r in group if r["law"] == "predictive" and r["setting"] == default_lambda]
         entry = {"scenario": scenario, "model": model}
         if not ref or not math.isfinite(ref[0]["a_rms_m_s2"]):
             entry.update(a_rms_ref_m_s2=None, best_law=None, d_rms_by_law={})
@@ -430,7 +433,6 @@ def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> li
         best_law, best_d = ranked[0] if ranked else (None, None)
         runner = ranked[1] if len(ranked) > 1 else (None, None)
         beaten = points_below_predictive(laws)
-        group = [r for r in rows if r["scenario"] == scenario and r["model"] == model]
         for point in beaten:
             point["lost_in"] = where_lost(group, point)
         entry.update(
