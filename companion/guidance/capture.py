@@ -87,7 +87,24 @@ def capture_side(x_m: float, y_m: float, course_rad: float, px_m: float, py_m: f
 SIDE_MIN_OFFSET_M = 1.0
 
 
-def pursuit_capture_side(state: VehicleState, frame: PathFrame, gx_m: float, gy_m: float, side: int) -> int:
+#: A new capture within this many turn radii of the path turns the way of the path's direction.
+JOIN_SIDE_RADII = 2.0
+
+
+def join_side(course_rad: float, tx: float, ty: float) -> int:
+    """The side to turn onto the path's direction ``(tx, ty)`` the short way: +1 left, -1 right.
+
+    >>> join_side(math.pi / 2, 1.0, 0.0)  # heading north, the path going east: right
+    -1
+    >>> join_side(math.radians(-100.0), 1.0, 0.0)  # heading south and a little west: left
+    1
+    """
+    left = (math.atan2(ty, tx) - course_rad) % (2.0 * math.pi)  # the turn to it, anticlockwise
+    return 1 if left < math.pi else -1
+
+
+def pursuit_capture_side(state: VehicleState, frame: PathFrame, gx_m: float, gy_m: float, side: int,
+                         radius_m: float = 0.0) -> int:
     """:func:`capture_side` for a law that always has a goal ``(gx_m, gy_m)`` (``predictive``'s
     pursuit): the side to turn round, or 0. ``frame`` is the vehicle's path frame, ``side`` the
     previous tick's answer.
@@ -99,6 +116,12 @@ def pursuit_capture_side(state: VehicleState, frame: PathFrame, gx_m: float, gy_
     beam means the path bends back within the look-ahead distance (a tight loop, a hairpin): no
     turn round, the pursuit with its plan follows it (a turn round there left a loop of a
     self-crossing path on the held-out bench, ``random_1119``).
+
+    Within ``JOIN_SIDE_RADII`` turn radii (``radius_m``, the turn's ``V^2 / a``) of the path, a
+    new capture with the closest point behind turns the way that brings the course onto the
+    path's direction the short way (:func:`join_side`), whichever side the closest point lies on:
+    so near, the turn towards it swept across the path still turning and ran along it beyond,
+    or came round against the path's direction and turned on through it.
     """
     x, y, course = state.x_m, state.y_m, state.course_rad
     behind = capture_side(x, y, course, gx_m, gy_m, frame.tx, frame.ty, side)
@@ -110,6 +133,8 @@ def pursuit_capture_side(state: VehicleState, frame: PathFrame, gx_m: float, gy_
             behind = 0
         elif p_behind:
             behind = p_behind
+            if abs(frame.crosstrack_m) < JOIN_SIDE_RADII * radius_m:
+                behind = join_side(course, frame.tx, frame.ty)
     return behind
 
 

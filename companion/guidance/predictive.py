@@ -120,6 +120,9 @@ class PredictiveParams:
     terminal_cost : charge every rollout, at its horizon, the cost of bringing its deviation from
         the path back to zero afterwards (see :func:`cost_to_go_factor`); False is the law as it
         was, whose plan did not see past its horizon.
+    overshoot_weight : factor, >= 1, on the cross-track residual of every rollout step beyond the
+        path, on the far side from where the vehicle is at the re-optimisation (see
+        :func:`weigh_overshoot`); 1 weighs both sides the same, as the law did before.
     """
 
     lambda_s4: float = DEFAULT_LAMBDA_S4
@@ -139,6 +142,7 @@ class PredictiveParams:
     capture_tc_scale: float = 0.6
     adapt_model: bool = False
     terminal_cost: bool = True
+    overshoot_weight: float = 4.0
 
     def __post_init__(self) -> None:
         def number(name: str) -> float:
@@ -155,6 +159,8 @@ class PredictiveParams:
         for name in ("lambda_s4", "lag_s", "capture_tc_scale"):
             if not (math.isfinite(number(name)) and number(name) >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {getattr(self, name)!r}")
+        if not (math.isfinite(number("overshoot_weight")) and number("overshoot_weight") >= 1):
+            raise ValueError(f"overshoot_weight: expected a finite number >= 1, got {self.overshoot_weight!r}")
         if not number("a_max_m_s2") > 0:
             raise ValueError(f"a_max_m_s2: expected a number > 0 (inf for none), got {self.a_max_m_s2!r}")
         for name in ("l_min_m", "l_max_m", "horizon_s", "rollout_dt_s", "reopt_period_s"):
@@ -402,6 +408,41 @@ def capture_reference(d0_m: float, d_rate0_m_s: float, tc_s: float, t_s: np.ndar
         return np.zeros_like(t)
     rate = 0.0 if d0_m * d_rate0_m_s > 0.0 else d_rate0_m_s
     return (d0_m + (rate + d0_m / tc_s) * t) * np.exp(-t / tc_s)
+
+
+#: Nearer the path than this at a re-optimisation, which side is "beyond" it is the noise of
+#: tracking, and :func:`weigh_overshoot` weighs both sides the same.
+OVERSHOOT_MIN_OFFSET_M = 1.0
+
+
+def weigh_overshoot(residuals: np.ndarray, d_ref_m: np.ndarray | None, sqrt_dt: float, weight: float) -> np.ndarray:
+    """The rollouts' cross-track residuals with every step beyond the path weighed ``weight`` times.
+
+    ``residuals`` are :meth:`PredictiveGuidance.rollout`'s ``(K, 2 * steps + 3)``: ``(d - r)
+    sqrt(dt)`` at the even columns before the last three, with ``r = d_ref_m`` (the capture
+    reference, :func:`capture_reference`; its first value is the vehicle's error ``d0`` at the
+    re-optimisation). A step whose ``d`` lies across the path from ``d0`` (``d d0 < 0``) is an
+    overshoot: it is charged ``weight^2`` times its squared error. A join is measured from where
+    it touches the path, so an overshoot there is error that counts in full, while the approach
+    before it is not tracking error yet; the plain ``d^2`` weighs a metre of approach like a
+    metre of overshoot, and the plan crossed the path to arrive a fraction sooner. Within
+    ``OVERSHOOT_MIN_OFFSET_M`` of the path (on it, tracking) nothing changes, nor with ``weight``
+    1 or without a reference (``d_ref_m`` None). Returns a new array; ``residuals`` is not changed.
+
+    >>> r = np.array([[0.5, 0.0, -0.5, 0.0, 0.0, 0.0, 0.0]])  # d - r at two steps (dt 1), three to go
+    >>> weigh_overshoot(r, np.array([2.0, 0.0]), 1.0, 3.0)  # d = 2.5 (near side), then -0.5 (beyond)
+    array([[ 0.5,  0. , -1.5,  0. ,  0. ,  0. ,  0. ]])
+    >>> weigh_overshoot(r, np.array([0.5, 0.0]), 1.0, 3.0)  # 0.5 m off: on the path, unchanged
+    array([[ 0.5,  0. , -0.5,  0. ,  0. ,  0. ,  0. ]])
+    """
+    if d_ref_m is None or weight == 1.0 or abs(float(d_ref_m[0])) <= OVERSHOOT_MIN_OFFSET_M:
+        return residuals
+    d0 = float(d_ref_m[0])
+    out: np.ndarray = residuals.copy()
+    err = out[:, 0:-3:2]
+    beyond = (err / sqrt_dt + d_ref_m) * d0 < 0.0
+    out[:, 0:-3:2] = np.where(beyond, weight * err, err)
+    return out
 
 
 def cost_to_go_factor(lag_s: float, lambda_s4: float) -> np.ndarray:
@@ -774,7 +815,8 @@ class PredictiveGuidance:
         ``plans[k]`` through the lag and the limit. The cost of a row is the sum of its squared
         residuals: ``sum ((d - r)^2 + lambda u^2) dt``, r the capture reference ``d_ref_m`` (one
         value per rollout step; None: zero), plus the cost to go from where it ends (the last
-        three, :func:`cost_to_go_factor`; zero with ``terminal_cost`` off).
+        three, :func:`cost_to_go_factor`; zero with ``terminal_cost`` off); an overshoot beyond the
+        path weighs ``overshoot_weight`` times (:func:`weigh_overshoot`).
         """
         p = self.params
         win = self._win
@@ -786,7 +828,7 @@ class PredictiveGuidance:
         to_go = _cost_to_go_cached(self._lag_s, p.lambda_s4) if p.terminal_cost else _NO_COST_TO_GO
         band = _band(win, np.full(k, win.index_of(self._s_win)), v_air, p.rollout_dt_s, self._d_win)
         if self._kernel is not None and self.compiled:
-            return self._kernel.rollout(
+            res = self._kernel.rollout(
                 win.x, win.y, win.tx, win.ty, win.k, WINDOW_SPACING_M, float(state.x_m), float(state.y_m),
                 heading, float(self._a_hat), np.ascontiguousarray(look_m, dtype=float),
                 np.ascontiguousarray(step_plans, dtype=float), v_air, float(p.wind_x_m_s), float(p.wind_y_m_s),
@@ -794,14 +836,24 @@ class PredictiveGuidance:
                 int(band.centre[0]), band.back, band.ahead, band.whole,
                 np.zeros(self._steps) if d_ref_m is None else np.ascontiguousarray(d_ref_m, dtype=float),
                 math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S, to_go)
+        else:
+            res = self._rollout_numpy(state, win, look_m, step_plans, d_ref_m, band, to_go)
+        return weigh_overshoot(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight)
+
+    def _rollout_numpy(self, state: VehicleState, win: _Window, look_m: np.ndarray, step_plans: np.ndarray,
+                       d_ref_m: np.ndarray | None, band: _Band, to_go: np.ndarray) -> np.ndarray:
+        """:meth:`rollout` in numpy (the compiled loops' arithmetic, step by step for every row)."""
+        p = self.params
+        k = look_m.size
+        heading, v_air = self._air(state)
+        cff, lead, limit = p.curvature_ff, self._lag_s, self._a_max
         h = np.full(k, heading)
         xy = np.empty((2, k))  # x and y in rows, as the pursuit takes them
         xy[0], xy[1] = state.x_m, state.y_m
         a_act = np.full(k, self._a_hat)
         dt = _const(p.rollout_dt_s)
         alpha, speed, half = _const(self._alpha(p.rollout_dt_s)), _const(v_air), _const(0.5)
-        # The ground velocity is the air velocity plus the wind; adding a zero wind would change
-        # nothing (V cos(h) is never -0.0), so it is skipped.
+        # ground velocity = air velocity + wind; a zero wind is skipped (V cos(h) is never -0.0)
         wind = np.array([[p.wind_x_m_s], [p.wind_y_m_s]]) if p.wind_x_m_s or p.wind_y_m_s else None
         trig = np.empty((2, k))
         ds, us = [], []
@@ -879,9 +931,8 @@ class PredictiveGuidance:
 
         1. One batched rollout holds every candidate look-ahead distance flown with the previous
            plan (shifted to now) and with no plan, and the shifted plan perturbed segment by
-           segment (forward differences) at the previous look-ahead distance. The cheapest
-           candidate is kept; if it is one without a plan, the plan restarts from zero (a plan
-           that has gone stale or saturated can always be dropped) and step 2 waits a period.
+           segment at the previous look-ahead. The cheapest candidate is kept; if it has no plan,
+           the plan restarts from zero and step 2 waits a period.
         2. Gauss-Newton on the plan: the perturbed rows give the Jacobian of the residuals, the
            damped normal equations a step (scaled into the limit), and a second batched rollout
            tries the full, half and quarter step; a step is kept only if it lowers the cost.
@@ -896,9 +947,8 @@ class PredictiveGuidance:
         m = plan.size
         eps = FD_STEP_M_S2
         refine = p.refine_iterations > 0
-        # Rows: every candidate with the shifted plan, every candidate with no plan (so a plan
-        # that has gone stale or saturated can always be dropped), and the shifted plan perturbed
-        # segment by segment at the previous look-ahead (the Jacobian for step 2).
+        # Rows: every candidate with the shifted plan, and with no plan (a plan gone stale or
+        # saturated can always be dropped); the shifted plan perturbed (the Jacobian for step 2).
         rows_look = np.concatenate([look, look, np.full(m if refine else 0, self._look_m)])
         plans = np.zeros((rows_look.size, m))
         plans[:k] = plan
@@ -971,15 +1021,14 @@ class PredictiveGuidance:
         # At the vehicle's stated limit; the model's limit is the plan's (ModelMonitor: why).
         a_cmd = min(max(a + correction, -p.a_max_m_s2), p.a_max_m_s2)
         # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
-        # is pointing away; turn round towards it at the limit instead of planning.
-        behind = pursuit_capture_side(state, f, gx, gy, self._capture_side)
+        # is pointing away; turn round at the limit (none stated: 2 V^2 / L), no sharper than
+        # 2 V^2 / l_min (near hover, course is noise), instead of planning.
+        speed = max(state.speed_m_s, MIN_SPEED_M_S)
+        a_turn = min(self._a_max, capture_command_m_s2(1, speed, p.l_min_m if math.isfinite(self._a_max) else self._look_m))
+        behind = pursuit_capture_side(state, f, gx, gy, self._capture_side, speed * speed / a_turn)
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
-        if self._capture_side:
-            # At the limit (none stated: 2 V^2 / L), no sharper than 2 V^2 / l_min (near hover, course is
-            # noise); near the path, flying on first (companion.guidance.capture.join_turn_m_s2).
-            look = p.l_min_m if math.isfinite(self._a_max) else self._look_m
-            a_turn = min(self._a_max, capture_command_m_s2(1, max(state.speed_m_s, MIN_SPEED_M_S), look))
+        if self._capture_side:  # near the path, flying on first (companion.guidance.capture.join_turn_m_s2)
             a_turn, self._capture_stage = join_turn_m_s2(self.path, state, f, self._capture_side, a_turn, self._lag_s,
                                                          self._capture_stage)
             a_cmd = self._capture_side * a_turn

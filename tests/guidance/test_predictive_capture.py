@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.guidance.predictive import PredictiveGuidance, PredictiveParams, capture_reference
+from companion.guidance.predictive import (OVERSHOOT_MIN_OFFSET_M, PredictiveGuidance, PredictiveParams,
+                                          capture_reference, weigh_overshoot)
 from companion.guidance.types import GuidanceParams, VehicleState
 from companion.sim.simulator import LagModel, simulate
 
@@ -112,6 +113,60 @@ def test_on_the_path_the_reference_changes_little():
     assert np.max(np.abs(ref - plain)) < 0.1 * np.max(np.abs(plain))
     assert np.max(np.abs(ref)) == pytest.approx(np.max(np.abs(plain)), abs=1e-3)
     assert np.max(np.abs(ref[-100:])) < 0.005 and np.max(np.abs(plain[-100:])) < 0.005
+
+
+def test_an_overshoot_is_weighed_only_beyond_the_path_and_only_off_it():
+    # Two rollouts of three steps (dt 0.25 s, sqrt 0.5), three residuals to go. Reference from
+    # d0 = 2 m: (2, 1, 0.5); the rows fly d = (2, 0.5, -0.5) and (2, 1.5, 1).
+    sq = 0.5
+    ref = np.array([2.0, 1.0, 0.5])
+    d = np.array([[2.0, 0.5, -0.5], [2.0, 1.5, 1.0]])
+    res = np.zeros((2, 9))
+    res[:, 0:-3:2] = (d - ref) * sq
+    res[:, 1:-3:2] = 0.3  # the acceleration residuals: never weighed
+    res[:, -3:] = [0.1, 0.2, 0.3]  # the cost to go: never weighed
+    out = weigh_overshoot(res, ref, sq, 3.0)
+    # Only the first row's last step lies across the path from d0 = 2: (-0.5 - 0.5) * 0.5 * 3.
+    expected = res.copy()
+    expected[0, 4] = -1.5
+    assert out == pytest.approx(expected, abs=1e-15)
+    assert res[0, 4] == pytest.approx(-0.5)  # the input is left as it was
+    # The squared cost grows by (3^2 - 1) times that step's square: 8 * 0.25.
+    assert np.sum(out[0] ** 2) - np.sum(res[0] ** 2) == pytest.approx(8 * 0.25)
+    # Weight 1, no reference, or a vehicle within OVERSHOOT_MIN_OFFSET_M of the path: unchanged.
+    assert np.array_equal(weigh_overshoot(res, ref, sq, 1.0), res)
+    assert np.array_equal(weigh_overshoot(res, None, sq, 3.0), res)
+    near = ref * (0.9 * OVERSHOOT_MIN_OFFSET_M / 2.0)
+    assert np.array_equal(weigh_overshoot(res, near, sq, 3.0), res)
+    with pytest.raises(ValueError, match="overshoot_weight"):
+        PredictiveParams(overshoot_weight=0.5)
+
+
+def _join(lambda_s4: float, heading_deg: float, weight: float):
+    path = LinePath(x0=-50.0, length_m=600.0)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=lambda_s4, lag_s=0.3, a_max_m_s2=5.0,
+                                                    overshoot_weight=weight))
+    res = simulate(path, law, VehicleState(0.0, -10.0, math.radians(heading_deg), V), GuidanceParams(speed_m_s=V),
+                   model=LagModel(0.3, 5.0), t_max_s=14.0)
+    d = res.y_m  # started 10 m right of the x axis: any d > 0 is a crossing
+    i0 = int(np.flatnonzero(np.abs(d) <= 1.0)[0])
+    return (float(np.max(d)), float(res.t_s[i0]), float(np.sqrt(np.mean(d[i0:] ** 2))),
+            float(np.sqrt(np.mean(res.a_achieved_m_s2[i0:] ** 2))))
+
+
+@pytest.mark.parametrize("lambda_s4, heading_deg", [(0.03, 90.0), (0.3, 45.0), (1.0, 90.0)])
+def test_weighing_the_overshoot_lands_the_join_without_arriving_later(lambda_s4, heading_deg):
+    # From 10 m right of a line, flying at it (0.3 s lag, 5 m/s^2). Weighed like the approach, the
+    # plan crosses the line by 0.15-0.46 m to touch the 1 m band a little sooner; weighed 4 times
+    # (from more than OVERSHOOT_MIN_OFFSET_M off), it crosses by 30-50 % less, touches the band no
+    # later than 0.1 s after, and from there flies less acceleration for at most 5 % more error.
+    over1, touch1, d1, a1 = _join(lambda_s4, heading_deg, 1.0)
+    over4, touch4, d4, a4 = _join(lambda_s4, heading_deg, 4.0)
+    assert over1 > 0.15
+    assert over4 < 0.7 * over1
+    assert touch4 <= touch1 + 0.1
+    assert d4 <= 1.05 * d1
+    assert a4 < a1
 
 
 def _away_from_a_line(lambda_s4: float):
@@ -229,14 +284,15 @@ def test_near_hover_facing_away_the_turn_round_is_the_pursuits_bound_at_its_shor
     assert abs(fast.step(0.0, VehicleState(0.0, 0.0, math.radians(175.0), 9.8)).a_cmd_m_s2) == pytest.approx(9.8)
 
 
-def test_pointing_away_nearer_than_a_turn_radius_it_flies_on_before_turning():
+def test_pointing_away_within_two_turn_radii_it_turns_onto_the_paths_direction():
     # 3 m right of an eastward line, pointing away from it and 10 deg back against its direction
-    # (course -100 deg), 10 m/s, 5 m/s^2, 0.05 s lag. The closest point lies behind on the right,
-    # so the turn round is to the right, radius R = V^2 / a_max = 20 m; started at once, its centre
-    # would be 3 - R sin 10 deg = -0.47 m, i.e. 0.47 m left of the line, and the circle would run
-    # east 20.47 m beyond it. Flown on first, the centre moves out with the vehicle; the turn
-    # begins once the lagged circle (begun V tau = 0.5 m further on) runs east along the line:
-    # centre at y = -R, i.e. at y_lead = -R - R sin 10 deg, y = y_lead + V tau sin 80 deg.
+    # (course -100 deg), 10 m/s, 5 m/s^2, 0.05 s lag: R = V^2 / a_max = 20 m. The closest point
+    # lies behind on the right, but within 2 R the turn is the short way onto the path's
+    # direction: left, 100 deg (to the right it is 260 deg, and a circle begun 3 m off, towards
+    # the line, sweeps across it and runs east 20 m beyond). Turning left from -100 deg, the
+    # vehicle comes round heading east at its farthest, y = -3 - R (1 + sin 10 deg), plus the
+    # V tau sin 80 deg it flies before the lagged turn bites: -26.96 m. From there the approach
+    # joins the line going east.
     path = LinePath(x0=-200.0, length_m=1000.0)
     v, tau, a_max = 10.0, 0.05, 5.0
     h = math.radians(-100.0)
@@ -244,24 +300,46 @@ def test_pointing_away_nearer_than_a_turn_radius_it_flies_on_before_turning():
     res = simulate(path, law, VehicleState(0.0, -3.0, h, v), GuidanceParams(speed_m_s=v, rate_hz=50.0),
                    model=LagModel(tau, a_max), t_max_s=25.0, keep_outputs=True)
     r = v * v / a_max
-    y_turn = -r - r * math.sin(math.radians(10.0)) + v * tau * math.sin(math.radians(80.0))  # -22.98 m
-    turn = int(np.flatnonzero(np.abs(res.a_cmd_m_s2) > 0.0)[0])
-    assert res.y_m[turn] == pytest.approx(y_turn, abs=v / 50.0)  # within one tick's flight
-    assert res.a_cmd_m_s2[turn] < 0.0 and res.outputs[0].extra["capture_side"] == -1  # right
-    assert np.max(res.y_m) < 1.0  # turned at once, it swept about 20 m past the line
-    assert -np.min(res.y_m) <= 2.0 * r + r * math.sin(math.radians(10.0)) + v * tau + 0.5
+    y_far = -3.0 - r * (1.0 + math.sin(math.radians(10.0))) - v * tau * math.sin(math.radians(80.0))
+    assert res.outputs[0].extra["capture_side"] == 1 and res.a_cmd_m_s2[0] == pytest.approx(a_max)  # left, at once
+    farthest = int(np.argmin(res.y_m))
+    assert res.y_m[farthest] == pytest.approx(y_far, abs=0.1)
+    assert abs(math.sin(res.course_rad[farthest])) < 0.01 and math.cos(res.course_rad[farthest]) > 0.99  # east
+    assert np.max(res.y_m) < 0.3  # it never crosses the line by more than the approach's join
     assert abs(res.y_m[-1]) < 0.05 and math.cos(res.course_rad[-1]) > 0.99  # on it, going east
+
+
+@pytest.mark.parametrize("y0_m, radius_m, expected", [(-5.0, 3.0, 1), (-5.0, 2.4, -1), (-5.0, 0.0, -1)])
+def test_within_two_turn_radii_a_new_capture_turns_the_short_way_onto_the_paths_direction(y0_m, radius_m, expected):
+    # 5 m right of an eastward line, course -100 deg: the closest point (0, 0) lies behind on the
+    # right (eta = 90 - (-100) = 190 deg, sin < 0), the pursuit's goal (10, 0) behind as well. The
+    # path's direction, east, is 100 deg to the left and 260 deg to the right: left within
+    # 2 R = 6 m, the closest point's side (right) beyond (2 R = 4.8 m) or with no radius given.
+    from companion.guidance.capture import join_side, pursuit_capture_side
+    from companion.guidance.path_frame import path_frame
+
+    path = LinePath(x0=-50.0, length_m=500.0)
+    state = VehicleState(0.0, y0_m, math.radians(-100.0), 5.0)
+    frame = path_frame(path, state.x_m, state.y_m, None)
+    assert frame.crosstrack_m == pytest.approx(y0_m)
+    assert pursuit_capture_side(state, frame, 10.0, 0.0, 0, radius_m) == expected
+    assert pursuit_capture_side(state, frame, 10.0, 0.0, -expected, radius_m) == -expected  # a side is kept
+    assert join_side(math.radians(-100.0), 1.0, 0.0) == 1
+    assert join_side(math.radians(-80.0), -1.0, 0.0) == -1  # the path going west: right, 100 deg
 
 
 def test_on_the_path_at_hover_the_capture_never_waits():
     # A copter starting from hover on the path (20 cm right of it), its velocity noise pointing
     # away from it and 10 deg back against it at 0.5 m/s (the goal behind the beam: a capture):
     # "away" is noise there, so the turn round begins at once (at 2 V^2 / l_min, 0.17 m/s^2)
-    # instead of flying on along the noise. 1.2 m off, within that turn's 1.5 m radius, it waits.
+    # instead of flying on along the noise. 1.2 m off (within two of that turn's 1.5 m radii) it
+    # begins at once too, the short way onto the path's direction (left), which runs beside the
+    # path instead of across it.
     path = LinePath(x0=-50.0, length_m=500.0)
-    waiting = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
-    off = waiting.step(0.0, VehicleState(0.0, -1.2, math.radians(-100.0), 0.5))
-    assert off.extra["capture_side"] != 0 and off.a_cmd_m_s2 == 0.0
+    off_law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
+    off = off_law.step(0.0, VehicleState(0.0, -1.2, math.radians(-100.0), 0.5))
+    assert off.extra["capture_side"] == 1
+    assert off.a_cmd_m_s2 == pytest.approx(2.0 * 0.5 ** 2 / PredictiveParams().l_min_m)
     law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
     out = law.step(0.0, VehicleState(0.0, -0.2, math.radians(-100.0), 0.5))
     assert out.extra["capture_side"] != 0
