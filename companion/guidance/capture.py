@@ -23,11 +23,10 @@ at P lies on (so the vehicle joins it going its way), or left when both are unde
 Once P is ahead of the beam the law's own command (towards P, then the look-ahead point as soon
 as one exists) takes over again.
 
-Where the turn round ends (``predictive`` only, :func:`turn_overshoot_m`): started nearer the
-path than its radius R = V^2 / a, pointing away, a turn at the limit sweeps across the path at an
-angle and runs along it beyond. Flying straight on first moves the circle out with the vehicle,
-so the turn can wait until the circle meets the path running its way (the Dubins way of joining
-a line: straight, then the turn that runs into the path).
+Which way the turn round goes near the path (``predictive`` only, :func:`join_side`): started
+within two turn radii R = V^2 / a of the path, pointing away, a turn towards P sweeps across the
+path at an angle and runs along it beyond; the turn the short way onto the path's direction
+runs beside it instead.
 """
 
 from __future__ import annotations
@@ -35,7 +34,7 @@ from __future__ import annotations
 import math
 
 from companion.geometry.paths import Path
-from companion.guidance.path_frame import PathFrame, PathLike, path_frame
+from companion.guidance.path_frame import PathFrame
 from companion.guidance.types import VehicleState
 
 #: |sin| below which a direction counts as dead ahead or astern when choosing the side.
@@ -141,99 +140,6 @@ def pursuit_capture_side(state: VehicleState, frame: PathFrame, gx_m: float, gy_
 def capture_command_m_s2(side: int, speed_m_s: float, reach_m: float) -> float:
     """The bounded turn ``side * 2 V^2 / L`` (``L = reach_m``, the law's look-ahead distance)."""
     return side * 2.0 * speed_m_s * speed_m_s / reach_m
-
-
-def turn_overshoot_m(path: PathLike, x_m: float, y_m: float, course_rad: float, side: int, radius_m: float,
-                     s_hint_m: float | None = None) -> tuple[float, float]:
-    """How far past the path a turn round started now would run along it, and how flying straight
-    on first changes that.
-
-    Parameters
-    ----------
-    x_m, y_m, course_rad : where the turn starts (local ENU, radians).
-    side : +1 left, -1 right.
-    radius_m : the turn's radius ``V^2 / a``.
-    s_hint_m : a projection near the start, if known.
-
-    Returns
-    -------
-    ``(overshoot_m, opening)``. The circle runs the path's way (velocity = the path tangent t) at
-    ``C - side R n`` (C its centre, n the path's left normal at C's closest point), which lies
-    ``d_C - side R`` from the path (``d_C`` C's signed distance, left positive). ``overshoot_m``
-    is that offset counted positive on the far side of the path from the turn's start: 0, the
-    circle touches the path running its way; ``> 0``, it crosses the path first and runs its way
-    that far beyond; ``< 0``, it runs its way still short of the path. ``opening``: metres of
-    overshoot removed per metre flown straight on first (``> 0``: waiting before the turn helps).
-
-    Examples
-    --------
-    >>> from companion.geometry.paths import waypoint_path
-    >>> line = waypoint_path([[-100.0, 0.0], [100.0, 0.0]])  # going east
-    >>> o, r = turn_overshoot_m(line, 0.0, 3.0, math.pi / 2, 1, 10.0)  # 3 m left, pointing north
-    >>> round(o, 9), round(r, 9)  # centre (-10, 3): it runs east 7 m below the line; flying on helps
-    (7.0, 1.0)
-    >>> o, r = turn_overshoot_m(line, 0.0, 10.0, math.pi / 2, 1, 10.0)  # 10 m left: tangent
-    >>> abs(round(o, 9))
-    0.0
-    >>> o, r = turn_overshoot_m(line, 0.0, -3.0, -math.pi / 2, 1, 10.0)  # 3 m right, south, turning left
-    >>> round(o, 9), round(r, 9)  # runs east 13 m short of the line (the law's approach does the rest)
-    (-13.0, 1.0)
-    """
-    c, s = math.cos(course_rad), math.sin(course_rad)
-    cx, cy = x_m - side * radius_m * s, y_m + side * radius_m * c
-    start = path_frame(path, x_m, y_m, s_hint_m)
-    far = -1.0 if start.crosstrack_m >= 0.0 else 1.0  # the far side's sign
-    f = path_frame(path, cx, cy, start.s_m)
-    d_rate = s * f.tx - c * f.ty  # heading . left normal: d_C's change per metre flown
-    return far * (f.crosstrack_m - side * radius_m), -far * d_rate
-
-
-#: A capture waits before its turn only while flying on removes at least this much of the turn's
-#: overshoot per metre (heading at least 30 deg away from along the path).
-WAIT_MIN_OPENING = 0.5
-
-
-def join_turn_m_s2(path: PathLike, state: VehicleState, frame: PathFrame, side: int, a_turn_m_s2: float, lag_s: float,
-                   stage: str) -> tuple[float, str]:
-    """The turn round's command (magnitude, m/s^2) this tick, and its stage (``predictive``).
-
-    Begun nearer the path than the turn's radius ``R = V^2 / a``, pointing away, a turn at once
-    sweeps across the path and runs along it beyond; the vehicle then flies straight on (0) until
-    the circle, from where the lag lets the turn begin (``V lag_s`` further on), runs into the path
-    (:func:`turn_overshoot_m`: Dubins' join of a line, straight then the turn). Begun farther out,
-    the law's approach after the turn flattens the join itself, so the turn starts at once; and
-    within ``SIDE_MIN_OFFSET_M`` of the path too, where "away" is the noise of a copter starting
-    from hover (flying on there would carry it off along that noise).
-
-    ``state`` is the vehicle's, ``frame`` its :func:`~companion.guidance.path_frame.path_frame`,
-    ``side`` the turn's (+1 left, -1 right). ``stage``: ``""`` on the capture's first tick, then
-    what this returns: ``"wait"`` (flying on) or ``"turn"`` (kept to the capture's end).
-
-    Examples
-    --------
-    >>> from companion.geometry.paths import waypoint_path
-    >>> line = waypoint_path([[-100.0, 0.0], [100.0, 0.0]])  # going east
-    >>> from companion.guidance.types import VehicleState
-    >>> def near(y):  # y m off (south of) the line, pointing 10 deg back against it, at 10 m/s
-    ...     state = VehicleState(0.0, y, math.radians(-100.0), 10.0)
-    ...     return state, path_frame(line, 0.0, y, None)
-    >>> join_turn_m_s2(line, *near(-3.0), -1, 5.0, 0.0, "")  # R = 20 m: the turn would sweep across
-    (0.0, 'wait')
-    >>> join_turn_m_s2(line, *near(-25.0), -1, 5.0, 0.0, "")  # beyond R: at once
-    (5.0, 'turn')
-    """
-    speed = state.speed_m_s  # at rest the radius is 0: the turn starts at once
-    radius = speed * speed / a_turn_m_s2
-    if stage == "" and not SIDE_MIN_OFFSET_M < abs(frame.crosstrack_m) < radius:
-        stage = "turn"  # far out; or on the path, where which side is away is noise (a copter at hover)
-    if stage != "turn":
-        lead = speed * lag_s
-        c, s = math.cos(state.course_rad), math.sin(state.course_rad)
-        over, opening = turn_overshoot_m(path, state.x_m + lead * c, state.y_m + lead * s, state.course_rad, side,
-                                         radius, frame.s_m)
-        if over > 0.0 and opening > WAIT_MIN_OPENING:
-            return 0.0, "wait"
-    return a_turn_m_s2, "turn"
 
 
 def start_course_rad(path: Path, x_m: float, y_m: float, l1_m: float) -> float:

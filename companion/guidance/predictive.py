@@ -53,11 +53,11 @@ Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
 Pointing away, that goal lies behind the beam: the law then turns round at the limit
 ``a_max`` (with none stated, at its bound ``2 V^2 / L``), never sharper than ``2 V^2 / l_min``
-(a copter near hover has no course to turn round from), and does not plan; nearer the path than
-that turn's radius it flies straight on first, until the turn runs into the path instead of
-across it (:mod:`companion.guidance.capture`, our addition; ``docs/guidance.md``, "Capture far
-from the path"). An
-open path is continued straight past its end, as the baselines do.
+(a copter near hover has no course to turn round from), and does not plan; within two of that
+turn's radii of the path it turns the short way onto the path's direction, so that the turn runs
+beside the path instead of across it (:mod:`companion.guidance.capture`, our addition;
+``docs/guidance.md``, "Capture far from the path"). An open path is continued straight past its
+end, as the baselines do.
 
 Pure maths (numpy; scipy for the Riccati equation of the cost to go), deterministic: the same
 sequence of inputs gives the same outputs.
@@ -73,7 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.guidance import rollout_kernel
-from companion.guidance.capture import capture_command_m_s2, join_turn_m_s2, pursuit_capture_side
+from companion.guidance.capture import capture_command_m_s2, pursuit_capture_side
 from companion.guidance.path_frame import PathLike, frame_output, frame_samples, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
@@ -785,7 +785,6 @@ class PredictiveGuidance:
         self._a_max = p.a_max_m_s2
         self.monitor = ModelMonitor(p.lag_s, p.a_max_m_s2) if p.adapt_model else None
         self._capture_side = 0  # the side of the capture turn (companion.guidance.capture), 0: none
-        self._capture_stage = ""  # "wait" (flying on before the turn), "turn", or "" (not decided)
         # The rollouts compiled (companion.guidance.rollout_kernel) when numba is installed; the
         # numpy ones otherwise, or with this set False. Compiled (or loaded) before the first tick.
         self._kernel = rollout_kernel.load()
@@ -1028,14 +1027,11 @@ class PredictiveGuidance:
         behind = pursuit_capture_side(state, f, gx, gy, self._capture_side, speed * speed / a_turn)
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind
-        if self._capture_side:  # near the path, flying on first (companion.guidance.capture.join_turn_m_s2)
-            a_turn, self._capture_stage = join_turn_m_s2(self.path, state, f, self._capture_side, a_turn, self._lag_s,
-                                                         self._capture_stage)
+        if self._capture_side:
             a_cmd = self._capture_side * a_turn
             correction = 0.0
             self._plan = np.zeros(self._segments)
         elif ended:
-            self._capture_stage = ""
             self._next_reopt_t = -math.inf  # plan afresh on the next tick
         self._last_cmd = a_cmd
         extra = {"lookahead_m": l_eff, "correction_m_s2": correction, "a_hat_m_s2": self._a_hat,
