@@ -48,6 +48,10 @@ its feedback core and adds:
    the linearised vehicle under the same cost, :func:`cost_to_go_factor`). Without it the plan
    eased off its last corrections, whose cost fell past the horizon, and a large lambda cut
    inside what it flew.
+9. **An overshoot weighed more** (``overshoot_weight``): a rollout step beyond the path, on the
+   far side from where the vehicle is (more than ``OVERSHOOT_MIN_OFFSET_M`` off), is charged
+   ``overshoot_weight^2`` times its squared error, so a join lands rather than crossing the path
+   to arrive a fraction sooner (:func:`weigh_overshoot`).
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
