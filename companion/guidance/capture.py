@@ -76,13 +76,14 @@ def capture_side(x_m: float, y_m: float, course_rad: float, px_m: float, py_m: f
     sin_eta = (c * dy - s * dx) / dist
     if abs(sin_eta) >= SIDE_EPS:
         return 1 if sin_eta > 0.0 else -1
-    along = c * ty - s * tx  # velocity x path direction: > 0 when the path goes to the left
-    if abs(along) >= SIDE_EPS:
-        return 1 if along > 0.0 else -1
+    if abs(c * ty - s * tx) >= SIDE_EPS:  # the path's direction clear of dead ahead and astern
+        return join_side(course_rad, tx, ty)
     return 1
 
 
-#: Off the path by less than this, a capture turn ignores the closest point's side (only the goal's).
+#: Off the path by less than this, which side of it the vehicle is on is tracking noise: a
+#: capture turn ignores the closest point's side (only the goal's), and ``predictive``'s rollouts
+#: weigh both sides of the path alike (:func:`companion.guidance.predictive.weigh_overshoot`).
 SIDE_MIN_OFFSET_M = 1.0
 
 
@@ -98,8 +99,8 @@ def join_side(course_rad: float, tx: float, ty: float) -> int:
     >>> join_side(math.radians(-100.0), 1.0, 0.0)  # heading south and a little west: left
     1
     """
-    left = (math.atan2(ty, tx) - course_rad) % (2.0 * math.pi)  # the turn to it, anticlockwise
-    return 1 if left < math.pi else -1
+    along = math.cos(course_rad) * ty - math.sin(course_rad) * tx  # velocity x path direction
+    return 1 if along >= 0.0 else -1  # > 0: the path's direction lies to the left
 
 
 def pursuit_capture_side(state: VehicleState, frame: PathFrame, gx_m: float, gy_m: float, side: int,

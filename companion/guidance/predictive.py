@@ -49,7 +49,7 @@ its feedback core and adds:
    eased off its last corrections, whose cost fell past the horizon, and a large lambda cut
    inside what it flew.
 9. **An overshoot weighed more** (``overshoot_weight``): a rollout step beyond the path, on the
-   far side from where the vehicle is (more than ``OVERSHOOT_MIN_OFFSET_M`` off), is charged
+   far side from where the vehicle is (more than ``SIDE_MIN_OFFSET_M`` off), is charged
    ``overshoot_weight^2`` times its squared error, so a join lands rather than crossing the path
    to arrive a fraction sooner (:func:`weigh_overshoot`).
 
@@ -77,7 +77,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.guidance import rollout_kernel
-from companion.guidance.capture import capture_command_m_s2, pursuit_capture_side
+from companion.guidance.capture import SIDE_MIN_OFFSET_M, capture_command_m_s2, pursuit_capture_side
 from companion.guidance.path_frame import PathLike, frame_output, frame_samples, path_frame
 from companion.guidance.types import DEFAULT_LAMBDA_S4, SCHEDULE_TOLERANCE_S, GuidanceOutput, VehicleState
 
@@ -414,11 +414,6 @@ def capture_reference(d0_m: float, d_rate0_m_s: float, tc_s: float, t_s: np.ndar
     return (d0_m + (rate + d0_m / tc_s) * t) * np.exp(-t / tc_s)
 
 
-#: Nearer the path than this at a re-optimisation, which side is "beyond" it is the noise of
-#: tracking, and :func:`weigh_overshoot` weighs both sides the same.
-OVERSHOOT_MIN_OFFSET_M = 1.0
-
-
 def weigh_overshoot(residuals: np.ndarray, d_ref_m: np.ndarray | None, sqrt_dt: float, weight: float) -> np.ndarray:
     """The rollouts' cross-track residuals with every step beyond the path weighed ``weight`` times.
 
@@ -430,7 +425,7 @@ def weigh_overshoot(residuals: np.ndarray, d_ref_m: np.ndarray | None, sqrt_dt: 
     it touches the path, so an overshoot there is error that counts in full, while the approach
     before it is not tracking error yet; the plain ``d^2`` weighs a metre of approach like a
     metre of overshoot, and the plan crossed the path to arrive a fraction sooner. Within
-    ``OVERSHOOT_MIN_OFFSET_M`` of the path (on it, tracking) nothing changes, nor with ``weight``
+    ``SIDE_MIN_OFFSET_M`` of the path (on it, tracking) nothing changes, nor with ``weight``
     1 or without a reference (``d_ref_m`` None). Returns a new array; ``residuals`` is not changed.
 
     >>> r = np.array([[0.5, 0.0, -0.5, 0.0, 0.0, 0.0, 0.0]])  # d - r at two steps (dt 1), three to go
@@ -439,7 +434,7 @@ def weigh_overshoot(residuals: np.ndarray, d_ref_m: np.ndarray | None, sqrt_dt: 
     >>> weigh_overshoot(r, np.array([0.5, 0.0]), 1.0, 3.0)  # 0.5 m off: on the path, unchanged
     array([[ 0.5,  0. , -0.5,  0. ,  0. ,  0. ,  0. ]])
     """
-    if d_ref_m is None or weight == 1.0 or abs(float(d_ref_m[0])) <= OVERSHOOT_MIN_OFFSET_M:
+    if d_ref_m is None or weight == 1.0 or abs(float(d_ref_m[0])) <= SIDE_MIN_OFFSET_M:
         return residuals
     d0 = float(d_ref_m[0])
     out: np.ndarray = residuals.copy()

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.guidance.predictive import (OVERSHOOT_MIN_OFFSET_M, PredictiveGuidance, PredictiveParams,
-                                          capture_reference, weigh_overshoot)
+from companion.guidance.capture import SIDE_MIN_OFFSET_M
+from companion.guidance.predictive import PredictiveGuidance, PredictiveParams, capture_reference, weigh_overshoot
 from companion.guidance.types import GuidanceParams, VehicleState
 from companion.sim.simulator import LagModel, simulate
 
@@ -133,10 +133,10 @@ def test_an_overshoot_is_weighed_only_beyond_the_path_and_only_off_it():
     assert res[0, 4] == pytest.approx(-0.5)  # the input is left as it was
     # The squared cost grows by (3^2 - 1) times that step's square: 8 * 0.25.
     assert np.sum(out[0] ** 2) - np.sum(res[0] ** 2) == pytest.approx(8 * 0.25)
-    # Weight 1, no reference, or a vehicle within OVERSHOOT_MIN_OFFSET_M of the path: unchanged.
+    # Weight 1, no reference, or a vehicle within SIDE_MIN_OFFSET_M of the path: unchanged.
     assert np.array_equal(weigh_overshoot(res, ref, sq, 1.0), res)
     assert np.array_equal(weigh_overshoot(res, None, sq, 3.0), res)
-    near = ref * (0.9 * OVERSHOOT_MIN_OFFSET_M / 2.0)
+    near = ref * (0.9 * SIDE_MIN_OFFSET_M / 2.0)
     assert np.array_equal(weigh_overshoot(res, near, sq, 3.0), res)
     with pytest.raises(ValueError, match="overshoot_weight"):
         PredictiveParams(overshoot_weight=0.5)
@@ -158,7 +158,7 @@ def _join(lambda_s4: float, heading_deg: float, weight: float):
 def test_weighing_the_overshoot_lands_the_join_without_arriving_later(lambda_s4, heading_deg):
     # From 10 m right of a line, flying at it (0.3 s lag, 5 m/s^2). Weighed like the approach, the
     # plan crosses the line by 0.15-0.46 m to touch the 1 m band a little sooner; weighed 4 times
-    # (from more than OVERSHOOT_MIN_OFFSET_M off), it crosses by 30-50 % less, touches the band no
+    # (from more than SIDE_MIN_OFFSET_M off), it crosses by 30-50 % less, touches the band no
     # later than 0.1 s after, and from there flies less acceleration for at most 5 % more error.
     over1, touch1, d1, a1 = _join(lambda_s4, heading_deg, 1.0)
     over4, touch4, d4, a4 = _join(lambda_s4, heading_deg, 4.0)
