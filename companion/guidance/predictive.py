@@ -51,7 +51,9 @@ its feedback core and adds:
 9. **An overshoot weighed more** (``overshoot_weight``): a rollout step beyond the path, on the
    far side from where the vehicle is (more than ``SIDE_MIN_OFFSET_M`` off), is charged
    ``overshoot_weight^2`` times its squared error, so a join lands rather than crossing the path
-   to arrive a fraction sooner (:func:`weigh_overshoot`).
+   to arrive a fraction sooner (:func:`weigh_overshoot`). It fades out over the decade of
+   lambda below 0.03, where a setting asks for the tightest join the vehicle can fly
+   (:meth:`PredictiveParams.overshoot_weight_in_use`).
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
@@ -89,6 +91,7 @@ MIN_SPEED_M_S = 0.1
 FD_STEP_M_S2 = 0.05  # finite-difference step of the plan Jacobian
 LINE_SEARCH = np.array([1.0, 0.5, 0.25])  # step fractions tried (in one batch) after a Gauss-Newton step
 HORIZON_TIME_CONSTANTS = 4.0  # the shortest horizon, in closed-loop time constants (e^-4: 2 %)
+OVERSHOOT_FULL_LAMBDA_S4 = 0.03  # overshoot_weight in full from this lambda; none a decade below
 
 
 @dataclass(frozen=True)
@@ -126,7 +129,8 @@ class PredictiveParams:
         was, whose plan did not see past its horizon.
     overshoot_weight : factor, >= 1, on the cross-track residual of every rollout step beyond the
         path, on the far side from where the vehicle is at the re-optimisation (see
-        :func:`weigh_overshoot`); 1 weighs both sides the same, as the law did before.
+        :func:`weigh_overshoot`); 1 weighs both sides the same, as the law did before. In full
+        from lambda 0.03 up, less below (:meth:`overshoot_weight_in_use`).
     """
 
     lambda_s4: float = DEFAULT_LAMBDA_S4
@@ -183,6 +187,24 @@ class PredictiveParams:
     def capture_tc_s(self) -> float:
         """Time constant of the capture reference (s); 0 when it is disabled."""
         return float(self.capture_tc_scale * self.lambda_s4 ** 0.25)
+
+    def overshoot_weight_in_use(self) -> float:
+        """The overshoot weight at this lambda: ``overshoot_weight`` from ``OVERSHOOT_FULL_LAMBDA_S4`` up.
+
+        Below, it falls linearly in ``log10 lambda`` to 1 (both sides weighed the same) a decade
+        lower: a setting that asks for the tightest tracking the vehicle can fly buys its join
+        with an overshoot, and the full weight kept it from turning as hard as that asks
+        (docs/benchmarks.md, "The overshoot weight at the smallest lambdas").
+
+        >>> [round(PredictiveParams(lambda_s4=lam).overshoot_weight_in_use(), 2) for lam in (0.001, 0.003, 0.01, 0.03, 1.0)]
+        [1.0, 1.0, 2.57, 4.0, 4.0]
+        """
+        if self.lambda_s4 >= OVERSHOOT_FULL_LAMBDA_S4:
+            return self.overshoot_weight
+        if self.lambda_s4 <= 0.0:
+            return 1.0
+        share = min(max(1.0 + math.log10(self.lambda_s4 / OVERSHOOT_FULL_LAMBDA_S4), 0.0), 1.0)
+        return 1.0 + (self.overshoot_weight - 1.0) * share
 
     def horizon(self) -> tuple[float, int]:
         """The rollout horizon (s) and its number of plan segments (each about ``horizon_s / plan_segments``).
@@ -836,7 +858,7 @@ class PredictiveGuidance:
                 math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S, to_go)
         else:
             res = self._rollout_numpy(state, win, look_m, step_plans, d_ref_m, band, to_go)
-        return weigh_overshoot(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight)
+        return weigh_overshoot(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight_in_use())
 
     def _rollout_numpy(self, state: VehicleState, win: _Window, look_m: np.ndarray, step_plans: np.ndarray,
                        d_ref_m: np.ndarray | None, band: _Band, to_go: np.ndarray) -> np.ndarray:

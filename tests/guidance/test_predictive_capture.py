@@ -169,6 +169,28 @@ def test_weighing_the_overshoot_lands_the_join_without_arriving_later(lambda_s4,
     assert a4 < a1
 
 
+def test_the_overshoot_weight_fades_out_over_the_decade_below_its_full_lambda():
+    # Full from OVERSHOOT_FULL_LAMBDA_S4 = 0.03 up, 1 a decade below, linear in log10 lambda
+    # between: half a decade below, half the way from 4 to 1 (2.5); a quarter decade, 3.25.
+    def w(lam: float, weight: float = 4.0) -> float:
+        return PredictiveParams(lambda_s4=lam, overshoot_weight=weight).overshoot_weight_in_use()
+
+    assert w(0.03) == 4.0 and w(1.0) == 4.0
+    assert w(0.003) == 1.0 and w(0.001) == 1.0 and w(0.0) == 1.0
+    assert w(0.03 * 10 ** -0.5) == pytest.approx(2.5, abs=1e-12)
+    assert w(0.03 * 10 ** -0.25) == pytest.approx(3.25, abs=1e-12)
+    assert w(0.03 * 10 ** -0.5, weight=2.0) == pytest.approx(1.5, abs=1e-12)
+
+
+@pytest.mark.parametrize("lambda_s4, same", [(0.003, True), (0.03, False)])
+def test_a_decade_below_the_full_lambda_the_join_flies_as_without_the_weight(lambda_s4, same):
+    # The flights of _join with the weight 4 and 1: the same to the bit a decade below 0.03,
+    # where the weight in use is 1; apart at 0.03, where it is 4 (the test above it).
+    over4, touch4, d4, a4 = _join(lambda_s4, 90.0, 4.0)
+    over1, touch1, d1, a1 = _join(lambda_s4, 90.0, 1.0)
+    assert ((over4, touch4, d4, a4) == (over1, touch1, d1, a1)) is same
+
+
 def _away_from_a_line(lambda_s4: float):
     """A held-out bench case (random scenario 1121, reduced to a line): 25.3 m to the left of a
     line heading 147.7 deg, 116 m along it, pointing 58 deg away from it (course -88.4 deg), at
