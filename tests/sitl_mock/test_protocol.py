@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import signal
+import socket
 import statistics
 import subprocess
 import sys
@@ -312,11 +313,16 @@ def test_a_mavlink_1_command_is_accepted_and_answered_in_mavlink_2(mock_factory)
 
 def _recorded_positions(tmp_path, seed: int, name: str) -> list[tuple[float, float, float]]:
     tlog = tmp_path / name
-    argv = ["--link", f"udpout:127.0.0.1:{free_udp_port()}", "--speedup", "20", "--duration-s", "5", "--quiet",
-            "--start-airborne", "--start-alt-m", "10", "--pos-noise-m", "0.5", "--seed", str(seed),
-            "--tlog", str(tlog)]
-    proc = subprocess.run([sys.executable, "-m", "sitl_mock", *argv], cwd=ROOT, capture_output=True, text=True,
-                          timeout=60)
+    # The port the mock sends to stays bound here for the whole run: a port only probed free
+    # could be handed to the mock as its own ephemeral port, and the mock would then receive
+    # (and record) its own messages twice.
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sink:
+        sink.bind(("127.0.0.1", 0))
+        argv = ["--link", f"udpout:127.0.0.1:{sink.getsockname()[1]}", "--speedup", "20", "--duration-s", "5",
+                "--quiet", "--start-airborne", "--start-alt-m", "10", "--pos-noise-m", "0.5", "--seed", str(seed),
+                "--tlog", str(tlog)]
+        proc = subprocess.run([sys.executable, "-m", "sitl_mock", *argv], cwd=ROOT, capture_output=True, text=True,
+                              timeout=60)
     assert proc.returncode == 0, proc.stderr
     log = mavutil.mavlink_connection(str(tlog), dialect="ardupilotmega")
     out = []
