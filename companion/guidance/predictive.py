@@ -857,15 +857,15 @@ class PredictiveGuidance:
                 np.zeros(self._steps) if d_ref_m is None else np.ascontiguousarray(d_ref_m, dtype=float),
                 math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S, to_go)
         else:
-            res = self._rollout_numpy(state, win, look_m, step_plans, d_ref_m, band, to_go)
+            res = self._rollout_numpy(state, heading, v_air, win, look_m, step_plans, d_ref_m, band, to_go)
         return weigh_overshoot(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight_in_use())
 
-    def _rollout_numpy(self, state: VehicleState, win: _Window, look_m: np.ndarray, step_plans: np.ndarray,
-                       d_ref_m: np.ndarray | None, band: _Band, to_go: np.ndarray) -> np.ndarray:
-        """:meth:`rollout` in numpy (the compiled loops' arithmetic, step by step for every row)."""
+    def _rollout_numpy(self, state: VehicleState, heading: float, v_air: float, win: _Window, look_m: np.ndarray,
+                       step_plans: np.ndarray, d_ref_m: np.ndarray | None, band: _Band, to_go: np.ndarray) -> np.ndarray:
+        """:meth:`rollout` in numpy (the compiled loops' arithmetic, step by step for every row);
+        ``heading``, ``v_air``: the vehicle's air heading and airspeed (:meth:`_air`)."""
         p = self.params
         k = look_m.size
-        heading, v_air = self._air(state)
         cff, lead, limit = p.curvature_ff, self._lag_s, self._a_max
         h = np.full(k, heading)
         xy = np.empty((2, k))  # x and y in rows, as the pursuit takes them

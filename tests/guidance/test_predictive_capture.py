@@ -350,7 +350,7 @@ def test_within_two_turn_radii_a_new_capture_turns_the_short_way_onto_the_paths_
     assert join_side(math.radians(-80.0), -1.0, 0.0) == -1  # the path going west: right, 100 deg
 
 
-def test_on_the_path_at_hover_the_capture_never_waits():
+def test_near_the_path_at_hover_the_capture_turns_round_at_once():
     # A copter starting from hover on the path (20 cm right of it), its velocity noise pointing
     # away from it and 10 deg back against it at 0.5 m/s (the goal behind the beam: a capture):
     # "away" is noise there, so the turn round begins at once (at 2 V^2 / l_min, 0.17 m/s^2)
