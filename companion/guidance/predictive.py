@@ -58,8 +58,8 @@ its feedback core and adds:
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
 Pointing away, that goal lies behind the beam: the law then turns round at the limit
-``a_max`` (with none stated, at its bound ``2 V^2 / L``), never sharper than ``2 V^2 / l_min``
-(a copter near hover has no course to turn round from), and does not plan; within two of that
+``a_max`` (with none stated, at its bound ``2 V^2 / L``), never sharper than ``2 V^2 / 3 m``
+(``HOVER_TURN_LOOK_M``: a copter near hover has no course to turn round from), and does not plan; within two of that
 turn's radii of the path it turns the short way onto the path's direction, so that the turn runs
 beside the path instead of across it (:mod:`companion.guidance.capture`, our addition;
 ``docs/guidance.md``, "Capture far from the path"). An open path is continued straight past its
@@ -92,6 +92,7 @@ FD_STEP_M_S2 = 0.05  # finite-difference step of the plan Jacobian
 LINE_SEARCH = np.array([1.0, 0.5, 0.25])  # step fractions tried (in one batch) after a Gauss-Newton step
 HORIZON_TIME_CONSTANTS = 4.0  # the shortest horizon, in closed-loop time constants (e^-4: 2 %)
 OVERSHOOT_FULL_LAMBDA_S4 = 0.03  # overshoot_weight in full from this lambda; none a decade below
+HOVER_TURN_LOOK_M = 3.0  # the turn round is no sharper than the pursuit's bound 2 V^2 / L at this look-ahead
 
 
 @dataclass(frozen=True)
@@ -136,9 +137,9 @@ class PredictiveParams:
     lambda_s4: float = DEFAULT_LAMBDA_S4
     lag_s: float = 0.0
     a_max_m_s2: float = math.inf
-    l_min_m: float = 3.0
+    l_min_m: float = 1.5
     l_max_m: float = 30.0
-    n_candidates: int = 8
+    n_candidates: int = 9
     horizon_s: float = 5.0
     rollout_dt_s: float = 0.2
     reopt_period_s: float = 0.2
@@ -790,9 +791,9 @@ class PredictiveGuidance:
         self._s_hint: float | None = None
         self._look_m = float(self._candidates[len(self._candidates) // 2])
         self._plan = np.zeros(self._segments)  # acceleration corrections, one per segment
-        # A correction larger than the vehicle's limit (or, with none, than the pursuit's largest
-        # command at the shortest look-ahead at 10 m/s) can only saturate: bound the plan there.
-        self._plan_bound = p.a_max_m_s2 if p.a_max_m_s2 < math.inf else 2.0 * 10.0**2 / p.l_min_m
+        # A correction larger than the vehicle's limit (or, with none, than the pursuit's command
+        # at 10 m/s and a 3 m look-ahead) can only saturate: bound the plan there.
+        self._plan_bound = p.a_max_m_s2 if p.a_max_m_s2 < math.inf else 2.0 * 10.0**2 / HOVER_TURN_LOOK_M
         self._plan_t0 = 0.0
         self._a_hat = 0.0  # lateral acceleration the vehicle is flying, per the lag model
         self._last_cmd = 0.0
@@ -1042,9 +1043,10 @@ class PredictiveGuidance:
         a_cmd = min(max(a + correction, -p.a_max_m_s2), p.a_max_m_s2)
         # Capture (companion.guidance.capture): the pursuit's goal behind the beam, the vehicle
         # is pointing away; turn round at the limit (none stated: 2 V^2 / L), no sharper than
-        # 2 V^2 / l_min (near hover, course is noise), instead of planning.
+        # 2 V^2 / HOVER_TURN_LOOK_M (near hover, course is noise), instead of planning.
         speed = max(state.speed_m_s, MIN_SPEED_M_S)
-        a_turn = min(self._a_max, capture_command_m_s2(1, speed, p.l_min_m if math.isfinite(self._a_max) else self._look_m))
+        bound_look = HOVER_TURN_LOOK_M if math.isfinite(self._a_max) else self._look_m
+        a_turn = min(self._a_max, capture_command_m_s2(1, speed, bound_look))
         behind = pursuit_capture_side(state, f, gx, gy, self._capture_side, speed * speed / a_turn)
         ended = bool(self._capture_side) and not behind
         self._capture_side = behind

@@ -31,7 +31,7 @@ Phases
     (``method="corrector"``), or the predictive law (``method="predictive"``: this phase is
     delegated to one :class:`~companion.guidance.predictive.PredictiveGuidance` built from
     ``lambda_s4``, ``rollout_tau_s`` (its lag), ``a_max_m_s2`` and the wind; it chooses its own
-    look-ahead between 3 and 30 m, so ``l1_m`` is not used there; its outputs carry ``k1 = k2 =
+    look-ahead between 1.5 and 30 m, so ``l1_m`` is not used there; its outputs carry ``k1 = k2 =
     NaN`` (no corrector weights) and ``extra`` holds ``lookahead_m``, ``correction_m_s2`` and
     ``a_hat_m_s2``; ``reoptimised`` marks its re-optimisation ticks, every 0.2 s). For the first
     two: When no path point ahead leaves the L1 circle (the vehicle is more

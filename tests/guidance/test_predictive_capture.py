@@ -20,6 +20,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 from bench_scenes import CirclePath, LinePath  # noqa: E402
 
 V = 5.0
+# The look-ahead search as it was when the reference's and the overshoot weight's flights below
+# were measured: 8 distances from 3 m. Each test isolates its own mechanism; the search's lower
+# bound (1.5 m by default) has its own tests (test_predictive_lookahead.py).
+SEARCH_FROM_3_M = {"l_min_m": 3.0, "n_candidates": 8}
 
 
 def test_reference_from_rest_is_the_critically_damped_decay():
@@ -105,7 +109,8 @@ def test_on_the_path_the_reference_changes_little():
         # The reference alone is compared: the cost to go at the horizon (its own tests,
         # test_predictive_terminal.py) moves this steady state by a few millimetres.
         law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=5.0,
-                                                        capture_tc_scale=scale, terminal_cost=False))
+                                                        capture_tc_scale=scale, terminal_cost=False,
+                                                        **SEARCH_FROM_3_M))
         res = simulate(path, law, VehicleState(30.0, 0.0, math.pi / 2, V), GuidanceParams(speed_m_s=V),
                        model=LagModel(0.3, 5.0), t_max_s=8.0)
         runs.append(np.hypot(res.x_m, res.y_m) - 30.0)
@@ -145,7 +150,7 @@ def test_an_overshoot_is_weighed_only_beyond_the_path_and_only_off_it():
 def _join(lambda_s4: float, heading_deg: float, weight: float):
     path = LinePath(x0=-50.0, length_m=600.0)
     law = PredictiveGuidance(path, PredictiveParams(lambda_s4=lambda_s4, lag_s=0.3, a_max_m_s2=5.0,
-                                                    overshoot_weight=weight))
+                                                    overshoot_weight=weight, **SEARCH_FROM_3_M))
     res = simulate(path, law, VehicleState(0.0, -10.0, math.radians(heading_deg), V), GuidanceParams(speed_m_s=V),
                    model=LagModel(0.3, 5.0), t_max_s=14.0)
     d = res.y_m  # started 10 m right of the x axis: any d > 0 is a crossing
@@ -289,19 +294,19 @@ def test_a_gauss_newton_step_is_kept_far_from_the_path():
 
 
 @pytest.mark.parametrize("speed_m_s", [0.5, 2.0])
-def test_near_hover_facing_away_the_turn_round_is_the_pursuits_bound_at_its_shortest_look_ahead(speed_m_s):
+def test_near_hover_facing_away_the_turn_round_is_the_pursuits_bound_at_a_3_m_look_ahead(speed_m_s):
     # A real PX4 copter at the start of its path, on it, just off hover: its velocity points
     # anywhere (here back along the path), so the goal is behind the beam. The turn round was at
     # the limit read from the autopilot (9.8 m/s^2, its tilt limit) whatever the speed: a second of
     # it at the start of a figure-eight doubled the flight's a_rms. It is now no sharper than the
-    # pursuit's own bound at its shortest look-ahead, 2 V^2 / l_min, by hand: 0.17 and 2.67 m/s^2
-    # with l_min = 3 m.
+    # pursuit's own bound at a 3 m look-ahead (HOVER_TURN_LOOK_M), 2 V^2 / 3 m, by hand: 0.17 and
+    # 2.67 m/s^2. The look-ahead search itself goes down to 1.5 m; the turn does not follow it.
     path = LinePath(-10.0, 0.0, 0.0, 500.0)
     law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.35, a_max_m_s2=9.8))
     out = law.step(0.0, VehicleState(0.0, 0.0, math.radians(175.0), speed_m_s))
     assert out.extra["capture_side"] != 0
     assert abs(out.a_cmd_m_s2) == pytest.approx(2.0 * speed_m_s**2 / 3.0, rel=1e-12)
-    # at cruise speed the same turn is at the limit: 2 V^2 / l_min = 64 m/s^2 at 9.8 m/s is above it
+    # at cruise speed the same turn is at the limit: 2 V^2 / 3 m = 64 m/s^2 at 9.8 m/s is above it
     fast = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.35, a_max_m_s2=9.8))
     assert abs(fast.step(0.0, VehicleState(0.0, 0.0, math.radians(175.0), 9.8)).a_cmd_m_s2) == pytest.approx(9.8)
 
@@ -353,7 +358,7 @@ def test_within_two_turn_radii_a_new_capture_turns_the_short_way_onto_the_paths_
 def test_near_the_path_at_hover_the_capture_turns_round_at_once():
     # A copter starting from hover on the path (20 cm right of it), its velocity noise pointing
     # away from it and 10 deg back against it at 0.5 m/s (the goal behind the beam: a capture):
-    # "away" is noise there, so the turn round begins at once (at 2 V^2 / l_min, 0.17 m/s^2)
+    # "away" is noise there, so the turn round begins at once (at 2 V^2 / 3 m, 0.17 m/s^2)
     # instead of flying on along the noise. 1.2 m off (within two of that turn's 1.5 m radii) it
     # begins at once too, the short way onto the path's direction (left), which runs beside the
     # path instead of across it.
@@ -361,8 +366,8 @@ def test_near_the_path_at_hover_the_capture_turns_round_at_once():
     off_law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
     off = off_law.step(0.0, VehicleState(0.0, -1.2, math.radians(-100.0), 0.5))
     assert off.extra["capture_side"] == 1
-    assert off.a_cmd_m_s2 == pytest.approx(2.0 * 0.5 ** 2 / PredictiveParams().l_min_m)
+    assert off.a_cmd_m_s2 == pytest.approx(2.0 * 0.5 ** 2 / 3.0)
     law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=0.3, a_max_m_s2=2.5))
     out = law.step(0.0, VehicleState(0.0, -0.2, math.radians(-100.0), 0.5))
     assert out.extra["capture_side"] != 0
-    assert abs(out.a_cmd_m_s2) == pytest.approx(2.0 * 0.5 ** 2 / PredictiveParams().l_min_m)
+    assert abs(out.a_cmd_m_s2) == pytest.approx(2.0 * 0.5 ** 2 / 3.0)
