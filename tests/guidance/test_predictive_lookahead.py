@@ -39,7 +39,7 @@ def test_the_default_search_spans_1_5_to_30_m_at_the_old_spacing():
     assert np.diff(np.log(c)) == pytest.approx(np.full(8, math.log(20.0) / 8.0), rel=1e-12)
 
 
-def test_at_a_slow_speed_the_tight_setting_joins_tighter_than_a_3_m_bound_allows_at_any_lambda():
+def test_at_a_slow_speed_the_tight_setting_joins_tighter_than_the_3_m_bound_at_its_tightest_settings():
     # The tightest joins a search bounded at 3 m flies, at lambda 1e-4 and 1e-3: about 5 cm of
     # d_rms. With the bound at 1.5 m the search settles below 3 m and the join at 1e-3 is more
     # than 20 % tighter than either, within the limit.
