@@ -59,11 +59,11 @@ Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
 Pointing away, that goal lies behind the beam: the law then turns round at the limit
 ``a_max`` (with none stated, at its bound ``2 V^2 / L``), never sharper than ``2 V^2 / 3 m``
-(``HOVER_TURN_LOOK_M``: a copter near hover has no course to turn round from), and does not plan; within two of that
-turn's radii of the path it turns the short way onto the path's direction, so that the turn runs
-beside the path instead of across it (:mod:`companion.guidance.capture`, our addition;
-``docs/guidance.md``, "Capture far from the path"). An open path is continued straight past its
-end, as the baselines do.
+(``HOVER_TURN_LOOK_M``: a copter near hover has no course to turn round from), and does not
+plan; within two of that turn's radii of the path it turns the short way onto the path's
+direction, so that the turn runs beside the path instead of across it
+(:mod:`companion.guidance.capture`, our addition; ``docs/guidance.md``, "Capture far from the
+path"). An open path is continued straight past its end, as the baselines do.
 
 Pure maths (numpy; scipy for the Riccati equation of the cost to go), deterministic: the same
 sequence of inputs gives the same outputs.
