@@ -54,6 +54,12 @@ its feedback core and adds:
    to arrive a fraction sooner (:func:`weigh_overshoot`). It fades out over the decade of
    lambda below 0.03, where a setting asks for the tightest join the vehicle can fly
    (:meth:`PredictiveParams.overshoot_weight_in_use`).
+10. **A wide turner's approach charged at the band** (``approach_at_band``): a vehicle whose turn
+    at the limit is at least ``WIDE_TURN_RADIUS_M`` wide (``V^2 / a_max``; 10 m/s at 5 m/s^2)
+    and that has not yet come within ``SIDE_MIN_OFFSET_M`` of the path charges each rollout's
+    error, until the rollout first comes that close, as if it lay on that band's edge: the
+    approach costs its time, not its metres (:func:`charge_approach_at_band`). Charged for its
+    metres, a fast vehicle dived square at the path and landed on its far side.
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
@@ -93,6 +99,7 @@ LINE_SEARCH = np.array([1.0, 0.5, 0.25])  # step fractions tried (in one batch) 
 HORIZON_TIME_CONSTANTS = 4.0  # the shortest horizon, in closed-loop time constants (e^-4: 2 %)
 OVERSHOOT_FULL_LAMBDA_S4 = 0.03  # overshoot_weight in full from this lambda; none a decade below
 HOVER_TURN_LOOK_M = 3.0  # the turn round is no sharper than the pursuit's bound 2 V^2 / L at this look-ahead
+WIDE_TURN_RADIUS_M = 20.0  # from this turn radius at the limit (V^2 / a_max) up, a join's approach is charged at the band
 
 
 @dataclass(frozen=True)
@@ -132,6 +139,11 @@ class PredictiveParams:
         path, on the far side from where the vehicle is at the re-optimisation (see
         :func:`weigh_overshoot`); 1 weighs both sides the same, as the law did before. In full
         from lambda 0.03 up, less below (:meth:`overshoot_weight_in_use`).
+    approach_at_band : for a vehicle whose turn at the limit is wide (``V^2 / a_max`` at least
+        ``WIDE_TURN_RADIUS_M``) and that has not yet come within ``SIDE_MIN_OFFSET_M`` of the
+        path, charge each rollout's cross-track error, until the rollout first comes that close,
+        as if it lay on that band's edge (see :func:`charge_approach_at_band`); False charges
+        the whole approach, as the law did before.
     """
 
     lambda_s4: float = DEFAULT_LAMBDA_S4
@@ -152,6 +164,7 @@ class PredictiveParams:
     adapt_model: bool = False
     terminal_cost: bool = True
     overshoot_weight: float = 4.0
+    approach_at_band: bool = True
 
     def __post_init__(self) -> None:
         def number(name: str) -> float:
@@ -160,7 +173,7 @@ class PredictiveParams:
                 raise ValueError(f"{name}: expected a number, got {value!r}")
             return float(value)
 
-        for name in ("adapt_model", "terminal_cost"):
+        for name in ("adapt_model", "terminal_cost", "approach_at_band"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         if not 0.0 <= number("curvature_ff") <= 1.0:
@@ -464,6 +477,36 @@ def weigh_overshoot(residuals: np.ndarray, d_ref_m: np.ndarray | None, sqrt_dt: 
     err = out[:, 0:-3:2]
     beyond = (err / sqrt_dt + d_ref_m) * d0 < 0.0
     out[:, 0:-3:2] = np.where(beyond, weight * err, err)
+    return out
+
+
+def charge_approach_at_band(residuals: np.ndarray, d_ref_m: np.ndarray, sqrt_dt: float, weight: float) -> np.ndarray:
+    """The rollouts' residuals of a join, charged as the bench measures one: from the touch.
+
+    ``residuals`` and ``d_ref_m`` as in :func:`weigh_overshoot` (``d_ref_m[0]`` the vehicle's
+    error ``d0`` at the re-optimisation, more than ``SIDE_MIN_OFFSET_M`` off). Each row's steps
+    before it first comes within ``SIDE_MIN_OFFSET_M`` of the path are charged as if they lay on
+    that band's edge, ``+-SIDE_MIN_OFFSET_M`` on their own side; from there on its error ``d``
+    itself (no capture reference), ``weight`` times beyond the path (``d d0 < 0``). The
+    acceleration residuals and the cost to go (the last three) are kept. The approach is then
+    charged for the time it takes, not for its metres: a fast vehicle charged for those metres
+    dived square at the path and, its turn at the limit tens of metres wide, landed on the far
+    side of it (docs/benchmarks.md, "The approach charged at the band"). Returns a new array.
+
+    >>> r = np.zeros((1, 11))  # four steps (dt 1), three to go; reference (5, 2, 0.5, 0)
+    >>> r[0, 0:-3:2] = np.array([5.0, 3.0, 0.8, -0.2]) - np.array([5.0, 2.0, 0.5, 0.0])
+    >>> charge_approach_at_band(r, np.array([5.0, 2.0, 0.5, 0.0]), 1.0, 4.0)[0, 0:-3:2]
+    array([ 1. ,  1. ,  0.8, -0.8])
+    """
+    d0 = float(d_ref_m[0])
+    out: np.ndarray = residuals.copy()
+    d = out[:, 0:-3:2] / sqrt_dt + d_ref_m
+    inside = np.abs(d) <= SIDE_MIN_OFFSET_M
+    first = np.where(inside.any(axis=1), inside.argmax(axis=1), d.shape[1])
+    before = np.arange(d.shape[1])[None, :] < first[:, None]
+    charged = np.where(before, np.sign(d) * SIDE_MIN_OFFSET_M, d)
+    charged = np.where(~before & (d * d0 < 0.0), weight * charged, charged)
+    out[:, 0:-3:2] = charged * sqrt_dt
     return out
 
 
@@ -806,6 +849,7 @@ class PredictiveGuidance:
         self._lag_s = p.lag_s
         self._a_max = p.a_max_m_s2
         self.monitor = ModelMonitor(p.lag_s, p.a_max_m_s2) if p.adapt_model else None
+        self._joined = False  # within SIDE_MIN_OFFSET_M of the path since the law started
         self._capture_side = 0  # the side of the capture turn (companion.guidance.capture), 0: none
         # The rollouts compiled (companion.guidance.rollout_kernel) when numba is installed; the
         # numpy ones otherwise, or with this set False. Compiled (or loaded) before the first tick.
@@ -837,7 +881,8 @@ class PredictiveGuidance:
         residuals: ``sum ((d - r)^2 + lambda u^2) dt``, r the capture reference ``d_ref_m`` (one
         value per rollout step; None: zero), plus the cost to go from where it ends (the last
         three, :func:`cost_to_go_factor`; zero with ``terminal_cost`` off); an overshoot beyond the
-        path weighs ``overshoot_weight`` times (:func:`weigh_overshoot`).
+        path weighs ``overshoot_weight`` times (:func:`weigh_overshoot`); a wide turner's approach
+        is charged at the band (:func:`charge_approach_at_band`, :meth:`_charges_approach`).
         """
         p = self.params
         win = self._win
@@ -859,7 +904,18 @@ class PredictiveGuidance:
                 math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S, to_go)
         else:
             res = self._rollout_numpy(state, heading, v_air, win, look_m, step_plans, d_ref_m, band, to_go)
+        if d_ref_m is not None and self._charges_approach(v_air, d_ref_m):
+            return charge_approach_at_band(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight_in_use())
         return weigh_overshoot(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight_in_use())
+
+    def _charges_approach(self, v_air_m_s: float, d_ref_m: np.ndarray | None) -> bool:
+        """Whether the rollouts charge the approach at the band (``approach_at_band``): a wide
+        turner (``V^2 / a_max >= WIDE_TURN_RADIUS_M``, the stated limit) more than
+        ``SIDE_MIN_OFFSET_M`` off the path, not yet that close since the law started."""
+        p = self.params
+        return (p.approach_at_band and not self._joined and d_ref_m is not None
+                and abs(float(d_ref_m[0])) > SIDE_MIN_OFFSET_M
+                and v_air_m_s * v_air_m_s >= WIDE_TURN_RADIUS_M * p.a_max_m_s2)
 
     def _rollout_numpy(self, state: VehicleState, heading: float, v_air: float, win: _Window, look_m: np.ndarray,
                        step_plans: np.ndarray, d_ref_m: np.ndarray | None, band: _Band, to_go: np.ndarray) -> np.ndarray:
@@ -1027,6 +1083,7 @@ class PredictiveGuidance:
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint, state.course_rad)
         self._s_hint = f.s_m
         self._s_win, self._d_win = f.s_m, f.crosstrack_m
+        self._joined = self._joined or abs(f.crosstrack_m) <= SIDE_MIN_OFFSET_M
         reoptimised = False
         if self._capture_side:  # turning round (below): no plan, only the goal is needed
             self._win = self._window(state, f.s_m, f.crosstrack_m)
