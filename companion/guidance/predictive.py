@@ -510,6 +510,19 @@ def charge_approach_at_band(residuals: np.ndarray, d_ref_m: np.ndarray, sqrt_dt:
     return out
 
 
+def approach_charged_at_band(params: PredictiveParams, joined: bool, v_air_m_s: float, d0_m: float) -> bool:
+    """Whether the rollouts charge the approach at the band (``params.approach_at_band``): a wide
+    turner (``V^2 / a_max >= WIDE_TURN_RADIUS_M``, the stated limit), ``d0_m`` more than
+    ``SIDE_MIN_OFFSET_M`` off the path and not ``joined`` (that close since the law started).
+
+    >>> p = PredictiveParams(a_max_m_s2=5.0)
+    >>> [approach_charged_at_band(p, False, v, -40.0) for v in (9.9, 10.0)]  # 19.6 and 20 m turns
+    [False, True]
+    """
+    return (params.approach_at_band and not joined and abs(d0_m) > SIDE_MIN_OFFSET_M
+            and v_air_m_s * v_air_m_s >= WIDE_TURN_RADIUS_M * params.a_max_m_s2)
+
+
 def cost_to_go_factor(lag_s: float, lambda_s4: float) -> np.ndarray:
     """The cost of a deviation from the path left at a rollout's horizon, as a factor.
 
@@ -882,7 +895,7 @@ class PredictiveGuidance:
         value per rollout step; None: zero), plus the cost to go from where it ends (the last
         three, :func:`cost_to_go_factor`; zero with ``terminal_cost`` off); an overshoot beyond the
         path weighs ``overshoot_weight`` times (:func:`weigh_overshoot`); a wide turner's approach
-        is charged at the band (:func:`charge_approach_at_band`, :meth:`_charges_approach`).
+        is charged at the band (:func:`charge_approach_at_band`, :func:`approach_charged_at_band`).
         """
         p = self.params
         win = self._win
@@ -904,18 +917,10 @@ class PredictiveGuidance:
                 math.sqrt(p.rollout_dt_s), math.sqrt(p.lambda_s4 * p.rollout_dt_s), MIN_SPEED_M_S, to_go)
         else:
             res = self._rollout_numpy(state, heading, v_air, win, look_m, step_plans, d_ref_m, band, to_go)
-        if d_ref_m is not None and self._charges_approach(v_air, d_ref_m):
-            return charge_approach_at_band(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight_in_use())
-        return weigh_overshoot(res, d_ref_m, math.sqrt(p.rollout_dt_s), p.overshoot_weight_in_use())
-
-    def _charges_approach(self, v_air_m_s: float, d_ref_m: np.ndarray | None) -> bool:
-        """Whether the rollouts charge the approach at the band (``approach_at_band``): a wide
-        turner (``V^2 / a_max >= WIDE_TURN_RADIUS_M``, the stated limit) more than
-        ``SIDE_MIN_OFFSET_M`` off the path, not yet that close since the law started."""
-        p = self.params
-        return (p.approach_at_band and not self._joined and d_ref_m is not None
-                and abs(float(d_ref_m[0])) > SIDE_MIN_OFFSET_M
-                and v_air_m_s * v_air_m_s >= WIDE_TURN_RADIUS_M * p.a_max_m_s2)
+        sqrt_dt, weight = math.sqrt(p.rollout_dt_s), p.overshoot_weight_in_use()
+        if d_ref_m is not None and approach_charged_at_band(p, self._joined, v_air, float(d_ref_m[0])):
+            return charge_approach_at_band(res, d_ref_m, sqrt_dt, weight)
+        return weigh_overshoot(res, d_ref_m, sqrt_dt, weight)
 
     def _rollout_numpy(self, state: VehicleState, heading: float, v_air: float, win: _Window, look_m: np.ndarray,
                        step_plans: np.ndarray, d_ref_m: np.ndarray | None, band: _Band, to_go: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import pytest
 
 from companion.guidance.capture import SIDE_MIN_OFFSET_M
 from companion.guidance.predictive import (WIDE_TURN_RADIUS_M, PredictiveGuidance, PredictiveParams,
-                                           charge_approach_at_band)
+                                           approach_charged_at_band, charge_approach_at_band)
 from companion.guidance.types import GuidanceParams, VehicleState
 from companion.sim.simulator import LagModel, simulate
 
@@ -59,7 +59,9 @@ def test_the_approach_is_charged_at_the_band_only_for_a_wide_turner_off_the_path
                              PredictiveParams(lambda_s4=0.03, lag_s=0.2, a_max_m_s2=5.0, approach_at_band=flag))
     state = VehicleState(0.0, y0_m, math.pi / 2, speed_m_s)
     law.step(0.0, state)
-    assert law._charges_approach(speed_m_s, law._reference(state)) is expected
+    d0 = float(law._reference(state)[0])
+    assert d0 == pytest.approx(y0_m, abs=1e-9)
+    assert approach_charged_at_band(law.params, law._joined, speed_m_s, d0) is expected
 
 
 def test_once_within_the_band_the_approach_is_never_charged_at_it_again():
@@ -70,7 +72,9 @@ def test_once_within_the_band_the_approach_is_never_charged_at_it_again():
     law.step(0.0, VehicleState(0.0, 0.0, 0.0, 12.0))
     off = VehicleState(2.4, -10.0, math.pi / 4, 12.0)
     law.step(0.2, off)
-    assert not law._charges_approach(12.0, law._reference(off))
+    assert law._joined
+    assert approach_charged_at_band(law.params, False, 12.0, -10.0)  # were it not joined
+    assert not approach_charged_at_band(law.params, law._joined, 12.0, -10.0)
 
 
 def _join(speed_m_s: float, lambda_s4: float, on: bool):
