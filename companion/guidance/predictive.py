@@ -501,9 +501,7 @@ def charge_approach_at_band(residuals: np.ndarray, d_ref_m: np.ndarray, sqrt_dt:
     d0 = float(d_ref_m[0])
     out: np.ndarray = residuals.copy()
     d = out[:, 0:-3:2] / sqrt_dt + d_ref_m
-    inside = np.abs(d) <= SIDE_MIN_OFFSET_M
-    first = np.where(inside.any(axis=1), inside.argmax(axis=1), d.shape[1])
-    before = np.arange(d.shape[1])[None, :] < first[:, None]
+    before = ~np.logical_or.accumulate(np.abs(d) <= SIDE_MIN_OFFSET_M, axis=1)  # not yet within the band
     charged = np.where(before, np.sign(d) * SIDE_MIN_OFFSET_M, d)
     charged = np.where(~before & (d * d0 < 0.0), weight * charged, charged)
     out[:, 0:-3:2] = charged * sqrt_dt
