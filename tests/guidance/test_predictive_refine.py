@@ -43,7 +43,7 @@ def test_the_second_step_never_raises_the_plans_cost_and_lowers_it_on_a_join():
         costs.append((c1, c2))
         return c2
 
-    law.reoptimise = both  # type: ignore[method-assign]
+    law.reoptimise = both
     res = simulate(path, law, VehicleState(0.0, -10.0, math.pi / 2, 5.0), GuidanceParams(speed_m_s=5.0),
                    model=LagModel(0.3, 5.0), t_max_s=12.0)
     c1, c2 = np.array(costs).T
