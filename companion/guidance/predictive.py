@@ -156,7 +156,7 @@ class PredictiveParams:
     rollout_dt_s: float = 0.2
     reopt_period_s: float = 0.2
     plan_segments: int = 10
-    refine_iterations: int = 1
+    refine_iterations: int = 2
     wind_x_m_s: float = 0.0
     wind_y_m_s: float = 0.0
     curvature_ff: float = 1.0

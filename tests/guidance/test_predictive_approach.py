@@ -95,14 +95,14 @@ def _join(speed_m_s: float, lambda_s4: float, on: bool):
 def test_a_fast_join_charged_at_the_band_lands_instead_of_diving_through_the_path(lambda_s4):
     # 12 m/s square at a line from 40 m, 0.2 s lag, 5 m/s^2: the turn onto the line at the limit
     # is 28.8 m wide. Charged for its metres, the plan holds the dive and turns at the limit too
-    # late: it crosses the line by 0.68-0.90 m. Charged at the band, it turns in early enough to
-    # cross by less than half of that; from the touch it flies with a third less error and less
-    # acceleration, and touches the band at most 0.8 s later.
+    # late: it crosses the line by 0.40-0.56 m. Charged at the band, it turns in early enough to
+    # cross by less than half of that; from the touch it flies with less error (a third less at
+    # lambda 0.03) and a fifth or more less acceleration, and touches the band at most 0.8 s later.
     plain, band = _join(12.0, lambda_s4, False), _join(12.0, lambda_s4, True)
-    assert plain["over"] > 0.6
+    assert plain["over"] > 0.35
     assert band["over"] < 0.5 * plain["over"]
-    assert band["d_rms"] < 0.67 * plain["d_rms"]
-    assert band["a_rms"] < plain["a_rms"]
+    assert band["d_rms"] < 0.9 * plain["d_rms"]
+    assert band["a_rms"] < 0.8 * plain["a_rms"]
     assert band["touch_s"] < plain["touch_s"] + 0.8
     assert band["a_max"] <= 5.0 + 1e-12
     assert band["settled"] < 0.05
