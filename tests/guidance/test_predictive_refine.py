@@ -20,13 +20,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 from bench_scenes import LinePath  # noqa: E402
 
 
-def test_the_default_refines_twice():
-    assert PredictiveParams().refine_iterations == 2
-
-
 def test_the_second_step_never_raises_the_plans_cost_and_lowers_it_on_a_join():
     # A join from 10 m right of a line, flying square at it (5 m/s, 0.3 s lag, 5 m/s^2, lambda
-    # 0.03). At every re-optimisation of the flight the law is copied as it stands and the copy
+    # 0.03), with the law's default steps (two; with one, both costs below would be equal). At
+    # every re-optimisation of the flight the law is copied as it stands and the copy
     # re-optimised with one step: both start from the same state, plan and look-ahead, so the
     # second step can only keep the first's cost or lower it. On this join it lowers it at most
     # re-optimisations, by more than 5 % at the largest.
