@@ -388,23 +388,59 @@ def points_below_predictive(fronts: dict) -> list[dict]:
     return beaten
 
 
-def where_lost(rows: list[dict], point: dict) -> str | None:
-    """Where predictive loses to a baseline point below its front (one of
-    :func:`points_below_predictive`'s, ``rows`` its scenario's and model's): ``"join"`` when most
-    of the difference in the squared error, between predictive's run nearest the point's a_rms
-    and the point's own run, lies in the join (:func:`join_split`), else ``"after"``; None
-    without the split (rows from an older file)."""
+def _compared_runs(rows: list[dict], point: dict) -> tuple[dict, dict] | None:
+    """The run behind a baseline point below predictive's front (one of
+    :func:`points_below_predictive`'s, ``rows`` its scenario's and model's) and ``predictive``'s
+    run nearest the point's a_rms; None when either is missing."""
     base = [r for r in rows if r["law"] == point["law"] and r["a_rms_m_s2"] == point["a_rms_m_s2"]
             and r["d_rms_m"] == point["d_rms_m"]]
     pred = [r for r in rows if r["law"] == "predictive" and math.isfinite(r["a_rms_m_s2"])]
     if not base or not pred:
         return None
-    near = min(pred, key=lambda r: abs(r["a_rms_m_s2"] - point["a_rms_m_s2"]))
-    parts = [(r.get("d_rms_join_m", math.nan), r.get("d_rms_after_join_m", math.nan)) for r in (near, base[0])]
+    return base[0], min(pred, key=lambda r: abs(r["a_rms_m_s2"] - point["a_rms_m_s2"]))
+
+
+def where_lost(rows: list[dict], point: dict) -> str | None:
+    """Where predictive loses to a baseline point below its front (:func:`_compared_runs`):
+    ``"join"`` when most of the difference in the squared error, between predictive's run nearest
+    the point's a_rms and the point's own run, lies in the join (:func:`join_split`), else
+    ``"after"``; None without the split (rows from an older file)."""
+    runs = _compared_runs(rows, point)
+    if runs is None:
+        return None
+    parts = [(r.get("d_rms_join_m", math.nan), r.get("d_rms_after_join_m", math.nan)) for r in (runs[1], runs[0])]
     if not all(math.isfinite(v) for pair in parts for v in pair):
         return None
     (pj, pa), (bj, ba) = parts
     return "join" if pj * pj - bj * bj >= pa * pa - ba * ba else "after"
+
+
+def measured_windows(rows: list[dict], point: dict) -> dict | None:
+    """How long each of the two compared runs (:func:`_compared_runs`) was measured: from its
+    first touch of the band to the common end (``window_s`` the point's run,
+    ``predictive_window_s`` predictive's). A run's figures are RMS over its own window, so two
+    laws that join the path at different places are averaged over different stretches of it (a
+    fixed cost such as the join weighs less in the longer one). None when a run or its times are
+    missing (rows from an older file)."""
+    runs = _compared_runs(rows, point)
+    if runs is None:
+        return None
+    base, pred = (r.get("duration_s", math.nan) - r.get("touch_s", math.nan) for r in runs)
+    if not (math.isfinite(base) and math.isfinite(pred)):
+        return None
+    return {"window_s": base, "predictive_window_s": pred}
+
+
+#: Two compared runs' windows (:func:`measured_windows`) this far apart, relative to the longer,
+#: average over visibly different stretches of the path.
+WINDOW_APART = 0.1
+
+
+def windows_alike(point: dict) -> bool:
+    """Whether a point below the front and predictive's run were measured over windows less than
+    :data:`WINDOW_APART` apart (relative to the longer one)."""
+    w, wp = point["window_s"], point["predictive_window_s"]
+    return abs(w - wp) < WINDOW_APART * max(w, wp)
 
 
 def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> list[dict]:
@@ -435,6 +471,7 @@ def summarise(rows: list[dict], default_lambda: float = DEFAULT_LAMBDA_S4) -> li
         beaten = points_below_predictive(laws)
         for point in beaten:
             point["lost_in"] = where_lost(group, point)
+            point.update(measured_windows(group, point) or {})
         entry.update(
             a_rms_ref_m_s2=a_ref, best_law=best_law, best_d_rms_m=best_d,
             runner_up=runner[0], runner_up_d_rms_m=runner[1],
@@ -529,6 +566,8 @@ def render_tables(rows: list[dict], summary: list[dict]) -> str:
         beaten_txt = ", ".join(sorted({b["law"] for b in beaten})) or "none"
         in_join = sum(b.get("lost_in") == "join" for b in beaten)
         join_txt = f" ({in_join} lost in the join)" if in_join else ""
+        apart = sum(not windows_alike(b) for b in beaten if "window_s" in b)
+        join_txt += f" ({apart} measured over windows {WINDOW_APART:.0%} apart or more)" if apart else ""
         lines.append(f"{s['scenario']:18s} {s['model']:6s} {_fmt(s.get('a_rms_ref_m_s2'), 2):>6s} {cells}  "
                      f"{best} ({_fmt(margin)})  {len(beaten)}: {beaten_txt}{join_txt}")
     return "\n".join(lines)

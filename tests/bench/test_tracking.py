@@ -11,7 +11,8 @@ import pytest
 from bench_scenes import LinePath
 from companion.bench.tracking import (JOIN_S, REFINE_LAMBDA_FLOOR_S4, ModelSpec, Task, fly_task, front_at,
                                       join_split, named_spec, pareto_front, refinement_settings, run_one,
-                                      summarise, true_crosstrack_m, where_lost)
+                                      render_tables, summarise, true_crosstrack_m, where_lost,
+                                      windows_alike)
 from companion.cli.main import main
 
 
@@ -210,3 +211,26 @@ def test_a_point_below_the_front_says_whether_predictive_lost_it_in_the_join():
     old = [{k: v for k, v in r.items() if "join" not in k} for r in rows((0.30, 0.01), (0.10, 0.05))]
     point = {"law": "npfg", "a_rms_m_s2": 1.0, "d_rms_m": old[1]["d_rms_m"]}
     assert where_lost(old, point) is None
+
+
+def test_a_point_below_the_front_says_over_which_windows_the_two_runs_were_measured():
+    # npfg joined the path at 8 s and flew to the end at 40 s (a 32 s window); predictive joined
+    # at 8 s too but further along the path, and reached the end at 30 s (22 s): 31 % apart.
+    def rows(pred_end_s):
+        return [{"scenario": "s", "model": "lag", "law": law, "setting": setting, "knob": "k", "a_rms_m_s2": a,
+                 "d_rms_m": d, "a_max_m_s2": 2.0, "d_max_m": 1.0, "reach_s": 8.0, "touch_s": 8.0, "duration_s": end}
+                for law, setting, a, d, end in (("predictive", 0.03, 0.56, 0.089, pred_end_s),
+                                                ("npfg", 3.0, 0.56, 0.074, 40.0))]
+
+    (s,) = summarise(rows(30.0), default_lambda=0.03)
+    (b,) = s["predictive_beaten_at"]
+    assert (b["window_s"], b["predictive_window_s"]) == (32.0, 22.0)
+    assert not windows_alike(b)  # |32 - 22| = 10 s >= 10 % of 32 s
+    assert "1 measured over windows 10% apart or more" in render_tables(rows(30.0), [s])
+    (s,) = summarise(rows(38.0), default_lambda=0.03)  # 30 s against 32 s: 6 % apart
+    assert windows_alike(s["predictive_beaten_at"][0])
+    assert "windows" not in render_tables(rows(38.0), [s])
+    # rows without their times (an older campaign file): not said.
+    old = [{k: v for k, v in r.items() if k != "duration_s"} for r in rows(30.0)]
+    (s,) = summarise(old, default_lambda=0.03)
+    assert "window_s" not in s["predictive_beaten_at"][0]
