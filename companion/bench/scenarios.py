@@ -200,6 +200,41 @@ def spec_from_mission(mission, name: str) -> ScenarioSpec:
                         circle_radius_m=float(mission.guidance.circle_radius_m), category="mission", **lag)
 
 
+def scenario_mission_yaml(spec: ScenarioSpec) -> str:
+    """A mission file (YAML) that is the scenario, the inverse of :func:`spec_from_mission`: its
+    path, speed, ``start`` pose, ``vehicle:`` lag model and mid-course circle, with a comment
+    that names the scenario and its wind. Missions carry no wind: ``companion bench tracking
+    --mission FILE --wind E,N`` (the comment's figures) flies the bench's scenario; without
+    ``--wind`` the same scenario in still air.
+
+    Only a scenario whose mission text is a JSON document in the local ENU frame (every random
+    one) can be written: the start is written in that frame.
+
+    >>> text = scenario_mission_yaml(random_spec(3))
+    >>> text.splitlines()[0]
+    '# random_3: closed/on_path, seed 3, of companion bench tracking --random'
+    """
+    from companion.mission.loader import dump_mission
+
+    try:
+        doc = json.loads(spec.mission_text)
+    except json.JSONDecodeError:
+        doc = None
+    if not isinstance(doc, dict) or doc.get("frame", "local_enu") != "local_enu":
+        raise ScenarioError(f"{spec.name}: only a scenario whose path is a JSON document in the local_enu "
+                            f"frame (every random one) can be written as a mission")
+    doc.update(name=spec.name, speed_m_s=spec.speed_m_s,
+               start={"x_m": spec.x_m, "y_m": spec.y_m, "heading_deg": math.degrees(spec.heading_rad)},
+               vehicle={"a_max_m_s2": spec.a_max_m_s2, "lag_s": spec.lag_s, "delay_s": spec.delay_s})
+    doc["midcourse"] = {**(doc.get("midcourse") or {}), "circle_radius_m": spec.circle_radius_m}
+    origin = f", seed {spec.seed}, of companion bench tracking --random" if spec.seed is not None else ""
+    east, north = spec.wind_enu_m_s
+    comments = (f"{spec.name}: {spec.category}{origin}",
+                f"wind (east, north) {east:g}, {north:g} m/s, which a mission does not carry: "
+                f"companion bench tracking --mission THIS_FILE --wind={east:g},{north:g}")
+    return dump_mission(doc, spec.name, comments)
+
+
 def function_mission_text(name: str, y_of_x: str, x_range_m: tuple[float, float]) -> str:
     """A minimal mission document (JSON) whose path is ``y = y_of_x`` over ``x_range_m``."""
     return json.dumps({"name": name, "speed_m_s": BENCH_SPEED_M_S,

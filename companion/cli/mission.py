@@ -7,6 +7,8 @@
 - ``show FILE [--plot out.png] [--json]``: the path's figures, and a plot of the path, its
   curvature along arc length, the start heading and the two initiation circles.
 - ``schema``: print the JSON Schema generated from :mod:`companion.mission.schema`.
+- ``random SEED... -o DIR``: the tracking bench's seeded random scenarios as mission files
+  (:func:`companion.bench.scenarios.scenario_mission_yaml`), to fly or plot one on its own.
 """
 
 from __future__ import annotations
@@ -52,6 +54,18 @@ def register(subparsers) -> None:
 
     schema = sub.add_parser("schema", help="print the mission JSON Schema")
     schema.set_defaults(func=run_schema)
+
+    rnd = sub.add_parser("random", help="write the tracking bench's random scenarios as mission files",
+                         description="Write scenarios of `companion bench tracking --random N --seed S` "
+                                     "(seeds S .. S+N-1) as mission files: path, speed, start, vehicle: "
+                                     "lag model; their wind in a comment (missions carry none).")
+    rnd.add_argument("seed", nargs="+", type=int, help="scenario seeds")
+    rnd.add_argument("-o", "--output", required=True,
+                     help="directory to write random_SEED.yaml into (created if missing; existing files "
+                          "are kept unless --force), or '-': standard output (one seed)")
+    rnd.add_argument("--force", action="store_true", help="overwrite existing files")
+    rnd.add_argument("--json", action="store_true", help="print one JSON object")
+    rnd.set_defaults(func=run_random)
 
 
 def run(args) -> int:  # pragma: no cover - each action sets its own func
@@ -107,15 +121,55 @@ def run_import(args) -> int:
         print(f"<stdout>: wrote {what}", file=sys.stderr)
         return 0
     out = FilePath(args.output)
+    _write_new(out, result.yaml_text, args.force, refusal)
+    print(f"{out}: wrote {what}")
+    return 0
+
+
+def _write_new(out: FilePath, text: str, force: bool, refusal: str) -> None:
+    """Write ``text`` to ``out``; an existing file is kept (``refusal`` raised) unless ``force``."""
     try:
         # "x": refuse an existing file in the same system call that creates the new one.
-        with open(out, "w" if args.force else "x", encoding="utf-8") as f:
-            f.write(result.yaml_text)
+        with open(out, "w" if force else "x", encoding="utf-8") as f:
+            f.write(text)
     except FileExistsError:
         raise CompanionError(refusal) from None
     except OSError as err:
         raise CompanionError(f"{out}: cannot write ({err.strerror})") from None
-    print(f"{out}: wrote {what}")
+
+
+# ------------------------------------------------------------------------------------ random
+def run_random(args) -> int:
+    from companion.bench.scenarios import random_spec, scenario_mission_yaml
+
+    if args.output == "-" and len(args.seed) != 1:
+        raise CompanionError(f"mission random: -o -: one seed at a time on standard output, got {len(args.seed)}")
+    specs = [random_spec(seed) for seed in args.seed]  # a bad seed: one line, before anything is written
+    texts = [scenario_mission_yaml(spec) for spec in specs]
+    if args.output == "-":
+        sys.stdout.write(texts[0])
+        return 0
+    out_dir = FilePath(args.output)
+    files = [out_dir / f"{spec.name}.yaml" for spec in specs]
+    if not args.force:
+        existing = [str(f) for f in files if f.exists()]
+        if existing:
+            raise CompanionError(f"{existing[0]}: already exists; not overwritten (pass --force to replace it)"
+                                 + (f" ({len(existing) - 1} more)" if len(existing) > 1 else ""))
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise CompanionError(f"{out_dir}: cannot create the directory ({err.strerror})") from None
+    for file, text in zip(files, texts):
+        _write_new(file, text, args.force, f"{file}: already exists; not overwritten (pass --force to replace it)")
+    if args.json:
+        print(json.dumps({"files": [{"file": str(f), "scenario": spec.summary()} for f, spec in zip(files, specs)]},
+                         indent=2))
+        return 0
+    for file, spec in zip(files, specs):
+        east, north = spec.wind_enu_m_s
+        print(f"{file}: wrote {spec.category}, V {spec.speed_m_s:g} m/s, lag {spec.lag_s:g} s, "
+              f"wind {east:g},{north:g} m/s (companion bench tracking --mission {file} --wind={east:g},{north:g})")
     return 0
 
 

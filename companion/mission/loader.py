@@ -119,8 +119,15 @@ def mission_text_with_method(file, method: str) -> str:
     load_mission(file)  # one clear line for a bad mission
     doc = yaml.safe_load(read_mission_text(file))
     doc.setdefault("guidance", {})["method"] = method
-    text = yaml.safe_dump(doc, sort_keys=False)
-    parse_mission(text, f"{file} (guidance.method: {method})")
+    return dump_mission(doc, f"{file} (guidance.method: {method})")
+
+
+def dump_mission(doc: dict, source_name: str, comments: tuple[str, ...] = ()) -> str:
+    """The mission document ``doc`` as YAML text (its keys in their order, after ``comments`` as
+    ``#`` lines), checked as :func:`parse_mission` checks a file (``source_name`` prefixes its
+    errors)."""
+    text = "".join(f"# {line}\n" for line in comments) + yaml.safe_dump(doc, sort_keys=False, width=1000)
+    parse_mission(text, source_name)
     return text
 
 

@@ -13,13 +13,14 @@ import math
 import os
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from companion.bench.scenarios import (CATEGORIES, KAPPA_FRACTION, ScenarioError, ScenarioSpec, build_path,
-                                       random_spec, random_specs, spec_id)
-from companion.bench.tracking import PAPER_HEADINGS_DEG, named_spec
+                                       random_spec, random_specs, scenario_mission_yaml, spec_id)
+from companion.bench.tracking import PAPER_HEADINGS_DEG, ModelSpec, Task, mission_specs, named_spec, run_one
 from companion.cli.main import main
 from companion.geometry.paths import function_path
 
@@ -217,3 +218,53 @@ def test_random_scenarios_refuse_a_wind_of_their_own_and_a_bad_count(capsys):
     assert "draw their own wind" in capsys.readouterr().err
     assert main(["bench", "tracking", "--random", "0"]) == 2
     assert "expected a count >= 1" in capsys.readouterr().err
+
+
+def test_a_random_scenario_written_as_a_mission_file_is_the_same_scenario(tmp_path, capsys):
+    # One seed of each category: the written file, loaded back (with the wind of its comment), is
+    # the drawn scenario; and one law's run on it is the bench's run on the drawn one.
+    seeds = list(range(1000, 1014))
+    assert main(["mission", "random", *map(str, seeds), "-o", str(tmp_path / "out"), "--json"]) == 0
+    files = [f["file"] for f in json.loads(capsys.readouterr().out)["files"]]
+    assert files == [str(tmp_path / "out" / f"random_{s}.yaml") for s in seeds]
+    for seed, file in zip(seeds, files):
+        drawn = random_spec(seed)
+        text = open(file).read()
+        east, north = drawn.wind_enu_m_s
+        assert f"--wind={east:g},{north:g}" in text.splitlines()[1]
+        (back,) = mission_specs([file])
+        assert (back.x_m, back.y_m, back.speed_m_s, back.lag_s, back.delay_s, back.a_max_m_s2,
+                back.circle_radius_m) == (drawn.x_m, drawn.y_m, drawn.speed_m_s, drawn.lag_s, drawn.delay_s,
+                                          drawn.a_max_m_s2, drawn.circle_radius_m)
+        assert back.heading_rad == pytest.approx(drawn.heading_rad, abs=1e-12)
+        a, b = build_path(drawn), build_path(back)
+        assert a.closed == b.closed and np.array_equal(a.x_table_m, b.x_table_m)
+    drawn = random_spec(1001)  # open, far start
+    back = replace(mission_specs([files[1]])[0], wind_enu_m_s=drawn.wind_enu_m_s)
+    rows = [run_one(Task(spec, ModelSpec("lag"), "npfg", 4.0)) for spec in (drawn, back)]
+    assert rows[1]["d_rms_m"] == pytest.approx(rows[0]["d_rms_m"], rel=1e-6)
+    assert rows[1]["a_rms_m_s2"] == pytest.approx(rows[0]["a_rms_m_s2"], rel=1e-6)
+    with pytest.raises(ScenarioError, match="racetrack: only a scenario whose path is a JSON document"):
+        scenario_mission_yaml(named_spec("racetrack"))  # a gallery file: written already
+
+
+def test_mission_random_keeps_existing_files_and_refuses_bad_seeds_in_one_line(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["mission", "random", "7", "-o", str(out)]) == 0
+    first = capsys.readouterr().out
+    assert first.startswith(f"{out / 'random_7.yaml'}: wrote ") and "--wind=" in first
+    (out / "random_7.yaml").write_text("kept\n")
+    assert main(["mission", "random", "8", "7", "-o", str(out)]) == 2  # nothing written: 8 neither
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "random_7.yaml: already exists" in err[0]
+    assert (out / "random_7.yaml").read_text() == "kept\n" and not (out / "random_8.yaml").exists()
+    assert main(["mission", "random", "8", "7", "-o", str(out), "--force"]) == 0
+    assert (out / "random_7.yaml").read_text().startswith("# random_7: ")
+    capsys.readouterr()
+    assert main(["mission", "random", "-o", str(out), "--", "-3"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "seed: expected an integer >= 0, got -3" in err[0]
+    assert main(["mission", "random", "5", "6", "-o", "-"]) == 2
+    assert "one seed at a time" in capsys.readouterr().err
+    assert main(["mission", "random", "5", "-o", "-"]) == 0
+    assert capsys.readouterr().out.startswith("# random_5: ")
