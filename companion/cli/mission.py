@@ -144,6 +144,8 @@ def run_random(args) -> int:
 
     if args.output == "-" and len(args.seed) != 1:
         raise CompanionError(f"mission random: -o -: one seed at a time on standard output, got {len(args.seed)}")
+    if args.output == "-" and args.json:
+        raise CompanionError("mission random: --json: not with -o - (the mission file itself goes to standard output)")
     specs = [random_spec(seed) for seed in args.seed]  # a bad seed: one line, before anything is written
     texts = [scenario_mission_yaml(spec) for spec in specs]
     if args.output == "-":

@@ -266,5 +266,7 @@ def test_mission_random_keeps_existing_files_and_refuses_bad_seeds_in_one_line(t
     assert len(err) == 1 and "seed: expected an integer >= 0, got -3" in err[0]
     assert main(["mission", "random", "5", "6", "-o", "-"]) == 2
     assert "one seed at a time" in capsys.readouterr().err
+    assert main(["mission", "random", "5", "-o", "-", "--json"]) == 2
+    assert "--json: not with -o -" in capsys.readouterr().err
     assert main(["mission", "random", "5", "-o", "-"]) == 0
     assert capsys.readouterr().out.startswith("# random_5: ")
