@@ -105,8 +105,7 @@ def run_import(args) -> int:
         value = getattr(args, name)
         if value is not None and not (math.isfinite(value) and value > 0):
             raise MissionError(f"--{name.replace('_', '-')}: expected a finite number > 0, got {value!r}")
-    refusal = (f"{args.output}: already exists; not overwritten (pass --force to replace it, "
-               "or -o - to print)")
+    refusal = _refusal(args.output, ", or -o - to print")
     if args.output != "-" and not args.force and FilePath(args.output).exists():
         raise CompanionError(refusal)  # before reading the plan: one line, nothing else
     result = import_file(args.file, name=args.name, speed_m_s=args.speed_m_s,
@@ -124,6 +123,11 @@ def run_import(args) -> int:
     _write_new(out, result.yaml_text, args.force, refusal)
     print(f"{out}: wrote {what}")
     return 0
+
+
+def _refusal(path, more: str = "") -> str:
+    """The one line that refuses to replace an existing file ``path``."""
+    return f"{path}: already exists; not overwritten (pass --force to replace it{more})"
 
 
 def _write_new(out: FilePath, text: str, force: bool, refusal: str) -> None:
@@ -156,14 +160,13 @@ def run_random(args) -> int:
     if not args.force:
         existing = [str(f) for f in files if f.exists()]
         if existing:
-            raise CompanionError(f"{existing[0]}: already exists; not overwritten (pass --force to replace it)"
-                                 + (f" ({len(existing) - 1} more)" if len(existing) > 1 else ""))
+            raise CompanionError(_refusal(existing[0]) + (f" ({len(existing) - 1} more)" if len(existing) > 1 else ""))
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise CompanionError(f"{out_dir}: cannot create the directory ({err.strerror})") from None
     for file, text in zip(files, texts):
-        _write_new(file, text, args.force, f"{file}: already exists; not overwritten (pass --force to replace it)")
+        _write_new(file, text, args.force, _refusal(file))
     if args.json:
         print(json.dumps({"files": [{"file": str(f), "scenario": spec.summary()} for f, spec in zip(files, specs)]},
                          indent=2))
