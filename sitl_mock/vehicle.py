@@ -163,6 +163,10 @@ class VehicleParams:
         the level ``sqrt(vel_bias_m_s^2 + (vel_bias_jerk_s2 * min(j, vel_bias_jerk_max_m_s3))^2)``,
         ``j`` the manoeuvre jerk: ``|d a / dt|`` of the horizontal acceleration, low-passed over
         :data:`JERK_TC_S` (s^2 and m/s^3; 0: a bias of one level; docs/vehicle_model.md).
+    vel_bias_smooth_s : float
+        Copter: the vehicle flies that bias through a first-order low-pass of this time constant
+        (s, 0: as it is): a bias that wanders as smoothly as ArduCopter SITL's does within a second
+        or two (docs/vehicle_model.md).
     vel_offset_m_s : float
         Copter: beside the bias, the velocity estimate misses a constant offset, drawn once (seeded)
         on each horizontal axis with this standard deviation (m/s, 0: none) and flown as the bias is.
@@ -198,6 +202,7 @@ class VehicleParams:
     vel_bias_tc_s: float = 3.0
     vel_bias_jerk_s2: float = 0.0
     vel_bias_jerk_max_m_s3: float = 1.0
+    vel_bias_smooth_s: float = 0.0
     vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
     seed: int = 0
@@ -212,7 +217,8 @@ class VehicleParams:
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
-                     "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_offset_m_s", "pos_delay_s",
+                     "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_bias_smooth_s", "vel_offset_m_s",
+                     "pos_delay_s",
                      "accel_ff_gain", "accel_ff_lag_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -279,6 +285,7 @@ class VehicleModel:
         self._rng = random.Random(params.seed)
         self._bias_rng = random.Random(f"vel-bias:{params.seed}")  # its own stream: the noise's stays as it was
         self._bias_ne_m_s = (0.0, 0.0)  # the velocity estimate's bias (what the vehicle flies beyond it)
+        self._smooth_bias_ne_m_s = (0.0, 0.0)  # that bias through its low-pass (vel_bias_smooth_s)
         self._jerk = ManoeuvreJerk()  # the manoeuvre jerk that sizes the bias's kicks
         offset_rng = random.Random(f"vel-offset:{params.seed}")  # its own stream: the bias's stays as it was
         self._offset_ne_m_s = (offset_rng.gauss(0.0, params.vel_offset_m_s), offset_rng.gauss(0.0, params.vel_offset_m_s))
@@ -496,7 +503,8 @@ class VehicleModel:
 
     def _step_bias(self, dt_s: float) -> None:
         """Advance the velocity estimate's bias (exact discretisation of a first-order Gauss-Markov
-        process) and, airborne, move the vehicle by it and by the offset: the loop holds the estimate."""
+        process), smooth it where the model says so, and, airborne, move the vehicle by it and by the
+        offset: the loop holds the estimate."""
         p = self.params
         phi = math.exp(-dt_s / p.vel_bias_tc_s)
         level = p.vel_bias_m_s
@@ -509,6 +517,11 @@ class VehicleModel:
         bn, be = self._bias_ne_m_s
         bn, be = phi * bn + kick * g(0.0, 1.0), phi * be + kick * g(0.0, 1.0)
         self._bias_ne_m_s = (bn, be)
+        if p.vel_bias_smooth_s > 0.0:
+            a = 1.0 - math.exp(-dt_s / p.vel_bias_smooth_s)
+            sn, se = self._smooth_bias_ne_m_s
+            bn, be = sn + a * (bn - sn), se + a * (be - se)
+            self._smooth_bias_ne_m_s = (bn, be)
         if not self.state.on_ground:
             self.state.pos_ned_m[0] += (bn + self._offset_ne_m_s[0]) * dt_s
             self.state.pos_ned_m[1] += (be + self._offset_ne_m_s[1]) * dt_s

@@ -414,6 +414,9 @@ MISSION = Object(
                                               "mock flies it)", default=0.0),
                     "vel_bias_jerk_max_m_s3": Field(Number(exclusive_minimum=0, maximum=100), "the jerk above "
                                                     "which the bias's level grows no more", default=1.0),
+                    "vel_bias_smooth_s": Field(Number(minimum=0, maximum=60), "time constant of the low-pass "
+                                               "through which the vehicle flies that bias (0: as it is)",
+                                               default=0.0),
                     "vel_offset_m_s": Field(Number(minimum=0, maximum=10), "standard deviation of the "
                                             "velocity estimate's offset, drawn once per flight on each "
                                             "horizontal axis (the mock flies it; the guidance does not "

@@ -276,14 +276,17 @@ def test_the_slow_tail_share_is_bounded():
         VehicleParams(kind="copter", tail_share=0.5, tail_tc_s=0.0)
 
 
-def test_velocity_estimate_bias_drifts_the_position_as_a_gauss_markov_process():
+@pytest.mark.parametrize("smooth_s", [0.0, 3.0])
+def test_velocity_estimate_bias_drifts_the_position_as_a_gauss_markov_process(smooth_s):
     # The loop holds its (biased) velocity estimate at the command, so the reported velocity stays
     # at 0 while the position drifts by the bias. For a first-order Gauss-Markov bias (sigma, tau)
     # the position change over T has the mean square 2 sigma^2 tau^2 (T/tau - 1 + exp(-T/tau))
     # per axis; 2000 s hold 500 independent windows of tau per axis, so the measured RMS lies
-    # within 10 % of the closed form (about 3 standard errors at the longest lag).
+    # within 10 % of the closed form (about 3 standard errors at the longest lag). Flown through a
+    # low-pass tau2, 2 sigma^2 tau / (tau^2 - tau2^2) (tau f(tau) - tau2 f(tau2)), f(c) = c T - c^2
+    # (1 - exp(-T / c)) (the bias's autocovariance integrated twice).
     sigma, tau, dt, seconds = 0.25, 4.0, 0.02, 2000.0
-    model = copter(vel_bias_m_s=sigma, vel_bias_tc_s=tau, seed=11)
+    model = copter(vel_bias_m_s=sigma, vel_bias_tc_s=tau, vel_bias_smooth_s=smooth_s, seed=11)
     n = round(seconds / dt)
     north, east = [], []
     for _ in range(n):
@@ -291,12 +294,19 @@ def test_velocity_estimate_bias_drifts_the_position_as_a_gauss_markov_process():
         north.append(model.state.pos_ned_m[0])
         east.append(model.state.pos_ned_m[1])
     assert max(abs(v) for v in model.state.vel_ned_m_s) < 1e-12
-    for lag_s in (1.0, 10.0):
+
+    def f(c: float, lag_s: float) -> float:
+        return c * lag_s - c * c * (1.0 - math.exp(-lag_s / c))
+
+    for lag_s in (0.5, 1.0, 10.0):
         k = round(lag_s / dt)
         sq = [(a[i + k] - a[i]) ** 2 for a in (north, east) for i in range(n - k)]
         measured = math.sqrt(sum(sq) / len(sq))
-        r = lag_s / tau
-        expected = math.sqrt(2.0 * sigma**2 * tau**2 * (r - 1.0 + math.exp(-r)))
+        if smooth_s > 0.0:
+            var = tau / (tau**2 - smooth_s**2) * (tau * f(tau, lag_s) - smooth_s * f(smooth_s, lag_s))
+        else:
+            var = f(tau, lag_s)
+        expected = math.sqrt(2.0 * sigma**2 * var)
         assert measured == pytest.approx(expected, rel=0.1), (lag_s, measured, expected)
 
 
