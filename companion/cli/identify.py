@@ -19,10 +19,11 @@ from companion.guidance.types import ACCEL_FF_KEYS, VEHICLE_MODEL_KEYS
 
 _DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "tail_share": 3, "tail_tc_s": 3,
              "speed_sag_s": 3, "yaw_rate_max_deg_s": 1, "vel_bias_m_s": 4, "vel_bias_tc_s": 2,
-             "vel_bias_jerk_s2": 4, "vel_bias_jerk_max_m_s3": 2, "vel_offset_m_s": 4, "pos_delay_s": 3,
+             "vel_bias_jerk_s2": 4, "vel_bias_jerk_max_m_s3": 2, "vel_bias_smooth_s": 1, "vel_offset_m_s": 4,
+             "pos_delay_s": 3,
              "accel_ff_gain": 3, "accel_ff_lag_s": 3}
 # Values a grid chooses or a bound the log shows: printed without a standard error.
-_NO_ERROR = ("yaw_rate_max_deg_s", "vel_bias_jerk_max_m_s3")
+_NO_ERROR = ("yaw_rate_max_deg_s", "vel_bias_jerk_max_m_s3", "vel_bias_smooth_s")
 
 
 class IdentificationRefused(CompanionError):
@@ -102,6 +103,10 @@ def run(args) -> int:
                   f"{q['vel_bias_jerk_se_s2']:.2g} s^2 up to {q['vel_bias_jerk_max_fitted_m_s3']:.2f} m/s^3, "
                   f"beside {q['vel_bias_still_m_s']:.4f} m/s ("
                   f"{'kept' if values['vel_bias_jerk_s2'] > 0 else 'not clear of zero: one level kept'})")
+        if "vel_bias_fast_ratio" in q:
+            print(f"  its drift's fast part (2-s moving average's rest) against its 1-s changes: "
+                  f"{q['vel_bias_fast_ratio']:.3f}, the bias smoothed over {values['vel_bias_smooth_s']:.1f} s: "
+                  f"{q['vel_bias_fast_ratio_model']:.3f}")
         if "vel_bias_across_m_s" in q:
             print(f"  velocity bias across the track (the part that moves a track): {q['vel_bias_across_m_s']:.3f} "
                   f"+- {q['vel_bias_across_se_m_s']:.3g} m/s over {q['vel_bias_across_tc_s']:.2f} s")

@@ -59,7 +59,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter, savgol_filter
 
 from companion.guidance.types import ACCEL_FF_KEYS, VehicleModel
-from companion.sim.wander import JerkWander, fit_jerk_wander, manoeuvre_jerk_m_s3, usable_pairs
+from companion.sim.wander import BiasSmoothing, JerkWander, fit_jerk_wander, fit_smoothing, manoeuvre_jerk_m_s3, usable_pairs
 
 GRID_DT_S = 0.02  # resampling step (50 Hz, the rate the setpoints and positions are streamed at)
 MAX_COMMAND_GAP_S = 0.2  # a setpoint older than this: no command stream, the sample is not used
@@ -278,13 +278,31 @@ def pooled_jerk_wander(flights: list[Samples], tc_s: float, min_speed_m_s: float
     flights at once across the track, past each flight's offset (as :func:`pooled_across_track_bias`
     with ``past_offset``), at the correlation time ``tc_s``. None when too few windows can be used;
     ValueError as :func:`pooled_across_track_bias`."""
-    segments = []
-    for f, pos in _with_positions(flights, "pooled jerk wander"):
+    segments, dt = _wander_segments(flights, "pooled jerk wander", min_speed_m_s, pos_delay_s)
+    return fit_jerk_wander(segments, dt, tc_s)
+
+
+def pooled_bias_smoothing(flights: list[Samples], wander: JerkWander, min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
+                          pos_delay_s: float = 0.0) -> BiasSmoothing | None:
+    """The smoothing of a wander's bias (``companion.sim.wander.fit_smoothing``) that gives back the
+    fast part of several flights' drifts across the track, past each flight's offset (the samples
+    of :func:`pooled_jerk_wander`). None as ``fit_smoothing``; ValueError as
+    :func:`pooled_across_track_bias`."""
+    segments, dt = _wander_segments(flights, "pooled bias smoothing", min_speed_m_s, pos_delay_s)
+    return fit_smoothing(segments, dt, wander)
+
+
+def _wander_segments(flights: list[Samples], what: str, min_speed_m_s: float,
+                     pos_delay_s: float) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], float]:
+    """Each flight's drift across the track past its offset and turn, its valid samples and its
+    manoeuvre jerk; and the grid's step."""
+    segments, dt = [], 0.0
+    for f, pos in _with_positions(flights, what):
         _, _, rest, ok, dt = velocity_offset(f.t_s, pos, f.vel_ne_m_s, f.valid, f.t_autopilot_s, min_speed_m_s,
                                              pos_delay_s)
         _, acc, *_ = _measured(f)
         segments.append((rest, ok, manoeuvre_jerk_m_s3(acc, dt)))
-    return fit_jerk_wander(segments, dt, tc_s)
+    return segments, dt
 
 
 def pooled_velocity_offset(flights: list[Samples], min_speed_m_s: float = ACROSS_MIN_SPEED_M_S,
@@ -908,9 +926,10 @@ def _identify_bias(s: Samples, quality: dict[str, float | str],
     if bias < BIAS_NEGLIGIBLE_M_S:
         tc = NO_BIAS_TC_S  # no bias to speak of: its time constant means nothing
     values = {"vel_bias_m_s": bias, "vel_bias_tc_s": tc, "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0,
-              "vel_offset_m_s": offset, "pos_delay_s": delay}
+              "vel_bias_smooth_s": 0.0, "vel_offset_m_s": offset, "pos_delay_s": delay}
     errors = {"vel_bias_m_s": se, "vel_bias_tc_s": tc_se, "vel_bias_jerk_s2": math.inf,
-              "vel_bias_jerk_max_m_s3": math.inf, "vel_offset_m_s": offset_se, "pos_delay_s": delay_se}
+              "vel_bias_jerk_max_m_s3": math.inf, "vel_bias_smooth_s": math.inf, "vel_offset_m_s": offset_se,
+              "pos_delay_s": delay_se}
     if bias >= BIAS_NEGLIGIBLE_M_S and "vel_bias_m_s" not in unidentified:
         _identify_jerk_wander(s, past_offset, delay, values, errors, quality)
     return values, errors
@@ -921,19 +940,28 @@ def _identify_jerk_wander(s: Samples, pos_ne_m: np.ndarray, delay_s: float, valu
     """Whether the bias wanders more while the vehicle manoeuvres (``companion.sim.wander``), at the
     bias's fitted correlation time: where the jerk's share stands :data:`JERK_WANDER_SIGNIFICANCE`
     standard errors clear of zero, the bias's level and that share replace the single level in
-    ``values`` and ``errors``. The fit goes to ``quality`` either way."""
+    ``values`` and ``errors``, with the smoothing that gives back the drift's fast part
+    (``companion.sim.wander.fit_smoothing``; the levels scaled by its factor). The fit goes to
+    ``quality`` either way."""
     e, ok, dt = _drift_ne(s.t_s, pos_ne_m, s.vel_ne_m_s, s.valid, s.t_autopilot_s, delay_s)
     _, acc, *_ = _measured(s)
-    fit = fit_jerk_wander([(e, ok, manoeuvre_jerk_m_s3(acc, dt))], dt, values["vel_bias_tc_s"])
+    segments = [(e, ok, manoeuvre_jerk_m_s3(acc, dt))]
+    fit = fit_jerk_wander(segments, dt, values["vel_bias_tc_s"])
     if fit is None:
         return
     errors["vel_bias_jerk_s2"] = fit.se_jerk_gain_s2
     quality.update({"vel_bias_still_m_s": fit.sigma_m_s, "vel_bias_jerk_fitted_s2": fit.jerk_gain_s2,
                     "vel_bias_jerk_se_s2": fit.se_jerk_gain_s2, "vel_bias_jerk_max_fitted_m_s3": fit.jerk_max_m_s3})
     if fit.jerk_gain_s2 > JERK_WANDER_SIGNIFICANCE * fit.se_jerk_gain_s2:
-        values.update(vel_bias_m_s=fit.sigma_m_s, vel_bias_jerk_s2=fit.jerk_gain_s2,
-                      vel_bias_jerk_max_m_s3=fit.jerk_max_m_s3)
-        errors.update(vel_bias_m_s=fit.se_sigma_m_s, vel_bias_jerk_s2=fit.se_jerk_gain_s2)
+        smooth = fit_smoothing(segments, dt, fit)
+        scale = 1.0 if smooth is None else smooth.level_scale
+        values.update(vel_bias_m_s=scale * fit.sigma_m_s, vel_bias_jerk_s2=scale * fit.jerk_gain_s2,
+                      vel_bias_jerk_max_m_s3=fit.jerk_max_m_s3,
+                      vel_bias_smooth_s=0.0 if smooth is None else smooth.smooth_s)
+        errors.update(vel_bias_m_s=scale * fit.se_sigma_m_s, vel_bias_jerk_s2=scale * fit.se_jerk_gain_s2)
+        if smooth is not None:
+            quality.update({"vel_bias_fast_ratio": smooth.ratio_measured,
+                            "vel_bias_fast_ratio_model": smooth.ratio_model})
 
 
 def _identify_offset(s: Samples, pos_ne_m: np.ndarray, delay_s: float,

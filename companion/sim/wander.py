@@ -13,7 +13,10 @@ each horizontal axis, is a first-order Gauss-Markov process whose level follows 
 **manoeuvre jerk** (:func:`manoeuvre_jerk_m_s3`): the rate of change of the horizontal
 acceleration vector, ``|d a / dt|``, through a first-order low-pass of :data:`JERK_TC_S`. With
 ``jerk_gain_s2 = 0`` it is the plain bias ``vel_bias_m_s`` / ``vel_bias_tc_s`` of the
-``vehicle:`` block.
+``vehicle:`` block. The vehicle may fly ``b`` through a first-order low-pass of time constant
+``smooth_s`` (``vel_bias_smooth_s``, :func:`smooth_bias`; 0: ``b`` as it is): ArduCopter SITL's
+drift, given the changes over 0.5-2 s that a first-order bias fitted to them has, is smoother
+within those seconds (:func:`fit_smoothing`).
 
 The fit (:func:`fit_jerk_wander`)
 ---------------------------------
@@ -47,6 +50,12 @@ WANDER_WINDOWS_S = (0.5, 1.0, 2.0)
 #: Caps of the jerk tried (m/s^3); ArduCopter SITL's wander stops growing at about 1.2.
 JERK_MAX_GRID_M_S3 = (0.4, 0.6, 0.8, 1.0, 1.2, 1.5, 2.0, 3.0, 5.0)
 IRLS_ROUNDS = 12
+#: Smoothing times of the bias tried by :func:`fit_smoothing` (s); 0 is the first-order process.
+SMOOTH_GRID_S = tuple(round(0.1 * i, 1) for i in range(16))
+#: The drift's fast part: what a centred moving average over this long leaves (s).
+FAST_WINDOW_S = 2.0
+SMOOTH_DRAWS = 20  # drifts drawn per smoothing tried
+SMOOTH_SEED = 0
 BOOTSTRAP_RUNS = 30  # drifts drawn from the fitted process for the standard errors
 BOOTSTRAP_SEED = 0
 
@@ -84,11 +93,11 @@ def manoeuvre_jerk_m_s3(acc_ne_m_s2: np.ndarray, dt_s: float, tc_s: float = JERK
     return np.asarray(lfilter([alpha], [1.0, -(1.0 - alpha)], raw, zi=zi)[0], float)
 
 
-def window_variance(level2: np.ndarray, dt_s: float, tc_s: float, k: int) -> np.ndarray:
+def window_variance(level2: np.ndarray, dt_s: float, tc_s: float, k: int, smooth_s: float = 0.0) -> np.ndarray:
     """Variance of the drift's change over ``k`` samples, ``e[n + k] - e[n]``, for each start ``n``
     (``len(level2) - k`` of them), for a bias whose squared level is ``level2[i]`` at step ``i``
     (the process of the module docstring, its past before the first sample held at ``level2[0]``;
-    ``e[n] = dt * sum(b[:n])``).
+    ``e[n] = dt * sum(b[:n])``), smoothed over ``smooth_s`` (:func:`smooth_bias`; 0: not).
 
     A constant level ``sigma^2`` gives ``2 sigma^2 tc^2 (T / tc - 1 + exp(-T / tc))`` for
     ``T = k dt`` much longer than ``dt`` (the closed form of ``companion.sim.identify.velocity_bias``).
@@ -97,6 +106,8 @@ def window_variance(level2: np.ndarray, dt_s: float, tc_s: float, k: int) -> np.
     n = len(x) - k
     if k < 1 or n < 1:
         return np.zeros(0)
+    if smooth_s > 0.0:
+        return _smoothed_window_variance(x, dt_s, tc_s, k, smooth_s)
     phi = math.exp(-dt_s / tc_s)
     p2 = phi * phi
     scale = dt_s * dt_s * (1.0 - p2) / (1.0 - phi) ** 2
@@ -110,6 +121,26 @@ def window_variance(level2: np.ndarray, dt_s: float, tc_s: float, k: int) -> np.
         h = (1.0 - phi ** (k - 1 - np.arange(k - 1))) ** 2
         inside = np.correlate(x, h, mode="valid")[:n]
     return np.asarray(scale * (past + inside), float)
+
+
+def _smoothed_window_variance(x: np.ndarray, dt_s: float, tc_s: float, k: int, smooth_s: float) -> np.ndarray:
+    """:func:`window_variance` of a smoothed bias, from the impulse response: the kick sized by
+    ``level2[i]`` enters ``b[i + 1]``, the smoothed bias follows it as :func:`smooth_bias`, and the
+    window's change weighs it by ``dt`` times the response summed over the window. The past before
+    the first sample is held at ``level2[0]`` for as long as the response lasts (twelve times both
+    time constants)."""
+    phi = math.exp(-dt_s / tc_s)
+    a = 1.0 - math.exp(-dt_s / smooth_s)
+    past = int(math.ceil(12.0 * (tc_s + smooth_s) / dt_s))
+    j = np.arange(past + k + 1)
+    response = np.where(j >= 1, phi ** np.maximum(j - 1, 0), 0.0)  # b[i + j] for a unit kick at i
+    response = lfilter([a], [1.0, -(1.0 - a)], response)
+    cum = np.concatenate([[0.0], np.cumsum(response)])
+    d = np.arange(-(k - 1), past + 1)  # window start minus kick index
+    weight2 = (dt_s * (cum[np.maximum(0, d + k)] - cum[np.maximum(0, d)])) ** 2
+    kicks = np.concatenate([np.full(past, x[0]), x]) * (1.0 - phi * phi)
+    full = np.convolve(kicks, weight2)  # full[m] = sum_q kicks[m - q] weight2[q], q = d + k - 1
+    return np.asarray(full[past + k - 1:past + k - 1 + len(x) - k], float)
 
 
 def usable_pairs(ok: np.ndarray, k: int) -> np.ndarray:
@@ -202,14 +233,107 @@ def _fit_on_grid(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]], dt_s
 
 
 def _draw_drift(rng: np.random.Generator, ok: np.ndarray, jerk: np.ndarray, p: np.ndarray, jerk_max: float,
-                dt_s: float, tc_s: float, axes: int) -> np.ndarray:
+                dt_s: float, tc_s: float, axes: int, smooth_s: float = 0.0) -> np.ndarray:
     """A drift drawn from the process ``(sigma^2, gain^2) = p`` over a flight's jerks (module
-    docstring), started at its level."""
+    docstring), started at its level, its bias smoothed over ``smooth_s`` (:func:`smooth_bias`)."""
     phi = math.exp(-dt_s / tc_s)
     level = np.sqrt(p[0] + p[1] * np.minimum(jerk, jerk_max) ** 2)[:, None]
     kicks = rng.standard_normal((len(ok), axes)) * level * math.sqrt(1.0 - phi * phi)
     kicks[0] = rng.standard_normal(axes) * level[0]
-    b = np.asarray(lfilter([1.0], [1.0, -phi], kicks, axis=0), float)
+    b = smooth_bias(np.asarray(lfilter([1.0], [1.0, -phi], kicks, axis=0), float), dt_s, smooth_s)
     e = np.zeros_like(b)
     e[1:] = np.cumsum(b[:-1], axis=0) * dt_s
     return e
+
+
+def smooth_bias(bias: np.ndarray, dt_s: float, smooth_s: float) -> np.ndarray:
+    """The bias (``(N, axes)``, one row per step ``dt_s``) through a first-order low-pass of time
+    constant ``smooth_s``, started at its first row: ``s[i] = s[i-1] + a (b[i] - s[i-1])``, ``a = 1 -
+    exp(-dt / smooth_s)``, as the mock steps it. ``smooth_s = 0``: the bias itself."""
+    b = np.asarray(bias, float)
+    if smooth_s <= 0.0 or not len(b):
+        return b
+    a = 1.0 - math.exp(-dt_s / smooth_s)
+    return np.asarray(lfilter([a], [1.0, -(1.0 - a)], b, axis=0, zi=(1.0 - a) * b[:1])[0], float)
+
+
+def drift_moments(e: np.ndarray, ok: np.ndarray, dt_s: float) -> np.ndarray:
+    """``[sum of squares, count]`` of the drift's fast part and of its changes over 1 s, pooled over
+    its axes: ``[[fast2, n_fast], [change2, n_change]]``.
+
+    The fast part is what a centred moving average over :data:`FAST_WINDOW_S` (an odd number of
+    samples) leaves, inside each run of valid samples at least three windows long (a window's
+    length cut from both ends); the
+    changes are those over 1 s within a run."""
+    e2 = np.asarray(e, float).reshape(len(ok), -1)
+    n = 2 * int(round(FAST_WINDOW_S / dt_s / 2.0)) + 1  # odd: the average centred on a sample
+    k = max(1, int(round(1.0 / dt_s)))
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(ok, int), [0]])))
+    out = np.zeros((2, 2))
+    for start, stop in zip(edges[::2], edges[1::2]):
+        x = e2[start:stop]
+        if len(x) < 3 * n:
+            continue
+        mean = np.cumsum(np.vstack([np.zeros((1, x.shape[1])), x]), axis=0)
+        centred = (mean[n:] - mean[:-n]) / n  # the mean of x[i:i + n], centred on i + n // 2
+        fast = (x[n // 2:n // 2 + len(centred)] - centred)[n:-n]
+        change = x[k:] - x[:-k]
+        out += [[float(np.sum(fast ** 2)), fast.size], [float(np.sum(change ** 2)), change.size]]
+    return out
+
+
+def model_moments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]], dt_s: float, wander: JerkWander,
+                  smooth_s: float, draws: int = SMOOTH_DRAWS, seed: int = SMOOTH_SEED) -> tuple[float, float]:
+    """``(fast, change)``: the RMS fast part and 1-s change (:func:`drift_moments`) of ``draws``
+    drifts drawn from the wander, smoothed over ``smooth_s``, over each segment's own valid samples
+    and jerks (segments as :func:`fit_jerk_wander`'s; seeded)."""
+    rng = np.random.default_rng(seed)
+    p = np.array([wander.sigma_m_s ** 2, wander.jerk_gain_s2 ** 2])
+    total = np.zeros((2, 2))
+    for _ in range(draws):
+        for e, ok, jerk in segments:
+            axes = np.asarray(e).reshape(len(ok), -1).shape[1]
+            drawn = _draw_drift(rng, ok, jerk, p, wander.jerk_max_m_s3, dt_s, wander.tc_s, axes, smooth_s)
+            total += drift_moments(drawn, ok, dt_s)
+    fast, change = np.sqrt(total[:, 0] / total[:, 1])
+    return float(fast), float(change)
+
+
+@dataclass(frozen=True)
+class BiasSmoothing:
+    """What :func:`fit_smoothing` found: the bias's smoothing time (s) and the factor on the
+    wander's levels that gives back the drift's changes over 1 s; the measured and the fitted
+    process's ratio of the drift's fast part to those changes."""
+
+    smooth_s: float
+    level_scale: float
+    ratio_measured: float
+    ratio_model: float
+
+
+def fit_smoothing(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]], dt_s: float,
+                  wander: JerkWander) -> BiasSmoothing | None:
+    """The smoothing of a fitted wander's bias (:func:`smooth_bias`) that gives back the drifts'
+    fast part (:func:`drift_moments`): segments as :func:`fit_jerk_wander`'s.
+
+    A first-order bias fitted to the drift's changes over 0.5-2 s can wander faster within those
+    seconds than the log's does (ArduCopter SITL's: docs/vehicle_model.md). The ratio of the fast
+    part to the 1-s changes does not depend on the levels; for each smoothing of
+    :data:`SMOOTH_GRID_S` it is measured on :data:`SMOOTH_DRAWS` drifts drawn over the flights' own
+    valid samples and jerks (the same draws for every smoothing), and the smoothing whose ratio
+    lies nearest the log's (in log ratio) is kept; ``level_scale`` then restores the 1-s changes.
+    None when the segments hold no fast part to measure.
+    """
+    measured = sum((drift_moments(e, ok, dt_s) for e, ok, _ in segments), np.zeros((2, 2)))
+    if measured[0, 1] == 0 or measured[1, 1] == 0 or measured[0, 0] <= 0.0:
+        return None
+    fast, change = np.sqrt(measured[:, 0] / measured[:, 1])
+    best = None
+    for smooth_s in SMOOTH_GRID_S:
+        m_fast, m_change = model_moments(segments, dt_s, wander, smooth_s)
+        miss = abs(math.log((m_fast / m_change) / (fast / change)))
+        if best is None or miss < best[0] - 1e-12:
+            best = (miss, BiasSmoothing(smooth_s=smooth_s, level_scale=float(change / m_change),
+                                        ratio_measured=float(fast / change), ratio_model=float(m_fast / m_change)))
+    assert best is not None
+    return best[1]
