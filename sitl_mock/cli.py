@@ -118,7 +118,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="steady wind north,east (m/s) the plane drifts with (default 0,0)")
     add("--vel-bias-m-s", type=float, default=None,
         help="standard deviation of the velocity estimate's bias the copter drifts by, m/s per horizontal axis, "
-             "one level throughout (default: the vehicle model's, which may grow while manoeuvring; 0: none)")
+             "one level throughout, flown as it is (default: the vehicle model's, which may grow while "
+             "manoeuvring and be smoothed; 0: none)")
     add("--vel-offset-m-s", type=float, default=None,
         help="standard deviation of the velocity estimate's constant offset, drawn once per flight (seeded), "
              "m/s per horizontal axis (default: the vehicle model's; 0: none)")

@@ -263,8 +263,7 @@ def drift_moments(e: np.ndarray, ok: np.ndarray, dt_s: float) -> np.ndarray:
 
     The fast part is what a centred moving average over :data:`FAST_WINDOW_S` (an odd number of
     samples) leaves, inside each run of valid samples at least three windows long (a window's
-    length cut from both ends); the
-    changes are those over 1 s within a run."""
+    length cut from both ends); the changes are those over 1 s within a run."""
     e2 = np.asarray(e, float).reshape(len(ok), -1)
     n = 2 * int(round(FAST_WINDOW_S / dt_s / 2.0)) + 1  # odd: the average centred on a sample
     k = max(1, int(round(1.0 / dt_s)))
