@@ -248,13 +248,13 @@ class MockAutopilot:
                                         MAV_STATE_ACTIVE if f.armed else MAV_STATE_STANDBY, 3)
         if msgid == MSG_LOCAL_POSITION_NED:
             x, y, z = self.model.measured_pos_ned_m()
-            v = s.vel_ned_m_s
+            v = self.model.reported_vel_ned_m_s()
             return mav.local_position_ned_encode(ms, x, y, z, v[0], v[1], v[2])
         if msgid == MSG_ATTITUDE:
             return mav.attitude_encode(ms, s.roll_rad, s.pitch_rad, s.yaw_rad, 0.0, 0.0, s.yaw_rate_rad_s)
         if msgid == MSG_GLOBAL_POSITION_INT:
             lat, lon, alt = self.geodetic(self.model.measured_pos_ned_m())
-            v = s.vel_ned_m_s
+            v = self.model.reported_vel_ned_m_s()
             hdg = int(round(math.degrees(s.yaw_rad) * 100.0)) % 36000
             return mav.global_position_int_encode(ms, lat, lon, int(alt * 1000), int(-s.pos_ned_m[2] * 1000),
                                                   int(v[0] * 100), int(v[1] * 100), int(v[2] * 100), hdg)

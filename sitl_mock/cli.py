@@ -23,7 +23,7 @@ from sitl_mock.vehicle import VehicleParams
 _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
 _MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
                    "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0,
-                   "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0, "vel_bias_smooth_s": 0.0,
+                   "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0, "vel_bias_smooth_s": 0.0, "vel_bias_loop_s": 0.0,
                    "vel_offset_m_s": 0.0, "pos_delay_s": 0.0, "accel_ff_gain": 1.0, "accel_ff_lag_s": 0.0}
 
 
@@ -167,6 +167,7 @@ def config_from_args(args: argparse.Namespace) -> MockConfig:
             vel_bias_jerk_s2=model["vel_bias_jerk_s2"] if args.vel_bias_m_s is None else 0.0,
             vel_bias_jerk_max_m_s3=model["vel_bias_jerk_max_m_s3"],
             vel_bias_smooth_s=model["vel_bias_smooth_s"] if args.vel_bias_m_s is None else 0.0,
+            vel_bias_loop_s=model["vel_bias_loop_s"] if args.vel_bias_m_s is None else 0.0,
             vel_offset_m_s=vel_offset, pos_delay_s=model["pos_delay_s"],
             seed=args.seed)
     except ValueError as err:

@@ -112,18 +112,19 @@ ARDUPILOT_STREAM_GROUPS = {
 # which the mock is judged on, were not used to set them (docs/vehicle_model.md).
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
                       "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "vel_bias_jerk_s2",
-                      "vel_bias_jerk_max_m_s3", "vel_bias_smooth_s", "vel_offset_m_s", "pos_delay_s", "accel_ff_gain",
-                      "accel_ff_lag_s")
+                      "vel_bias_jerk_max_m_s3", "vel_bias_smooth_s", "vel_bias_loop_s", "vel_offset_m_s", "pos_delay_s",
+                      "accel_ff_gain", "accel_ff_lag_s")
 IDENTIFIED_COPTER_MODELS = {
     "ardupilot": {"a_max_m_s2": 2.43, "delay_s": 0.173, "lag_s": 0.457, "accel_lag_s": 0.0, "tail_share": 0.0,
                   "tail_tc_s": 1.0, "speed_sag_s": 0.049, "yaw_rate_max_deg_s": 60.6,
                   "vel_bias_m_s": 0.0085, "vel_bias_tc_s": 1.63, "vel_bias_jerk_s2": 0.0300,
-                  "vel_bias_jerk_max_m_s3": 1.0, "vel_bias_smooth_s": 0.7, "vel_offset_m_s": 0.0068,
+                  "vel_bias_jerk_max_m_s3": 1.0, "vel_bias_smooth_s": 0.7, "vel_bias_loop_s": 0.0,
+                  "vel_offset_m_s": 0.0068,
                   "pos_delay_s": 0.019, "accel_ff_gain": 1.0, "accel_ff_lag_s": 0.0},
     "px4": {"a_max_m_s2": 3.86, "delay_s": 0.119, "lag_s": 0.437, "accel_lag_s": 0.0, "tail_share": 0.857,
             "tail_tc_s": 0.958, "speed_sag_s": 0.093, "yaw_rate_max_deg_s": 92.3,
             "vel_bias_m_s": 0.259, "vel_bias_tc_s": 9.0, "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0,
-            "vel_bias_smooth_s": 0.0,
+            "vel_bias_smooth_s": 0.0, "vel_bias_loop_s": 0.0,
             "vel_offset_m_s": 0.0, "pos_delay_s": 0.0, "accel_ff_gain": 1.31, "accel_ff_lag_s": 0.166},
 }
 

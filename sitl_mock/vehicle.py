@@ -167,6 +167,11 @@ class VehicleParams:
         Copter: the vehicle flies that bias through a first-order low-pass of this time constant
         (s, 0: as it is): a bias that wanders as smoothly as ArduCopter SITL's does within a second
         or two (docs/vehicle_model.md).
+    vel_bias_loop_s : float
+        Copter: the vehicle's velocity loop follows that (smoothed) bias only through a first-order
+        lag of this time constant, and the reported velocity carries the rest with the opposite
+        sign: an estimate that jitters quicker than the loop while the vehicle does not (s, 0: the
+        whole bias flown, the reported velocity smooth; PX4 SIH, docs/real_firmware.md).
     vel_offset_m_s : float
         Copter: beside the bias, the velocity estimate misses a constant offset, drawn once (seeded)
         on each horizontal axis with this standard deviation (m/s, 0: none) and flown as the bias is.
@@ -203,6 +208,7 @@ class VehicleParams:
     vel_bias_jerk_s2: float = 0.0
     vel_bias_jerk_max_m_s3: float = 1.0
     vel_bias_smooth_s: float = 0.0
+    vel_bias_loop_s: float = 0.0
     vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
     seed: int = 0
@@ -217,7 +223,8 @@ class VehicleParams:
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
-                     "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_bias_smooth_s", "vel_offset_m_s",
+                     "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_bias_smooth_s", "vel_bias_loop_s",
+                     "vel_offset_m_s",
                      "pos_delay_s",
                      "accel_ff_gain", "accel_ff_lag_s"):
             value = getattr(self, name)
@@ -286,6 +293,8 @@ class VehicleModel:
         self._bias_rng = random.Random(f"vel-bias:{params.seed}")  # its own stream: the noise's stays as it was
         self._bias_ne_m_s = (0.0, 0.0)  # the velocity estimate's bias (what the vehicle flies beyond it)
         self._smooth_bias_ne_m_s = (0.0, 0.0)  # that bias through its low-pass (vel_bias_smooth_s)
+        self._flown_bias_ne_m_s = (0.0, 0.0)  # what of it the velocity loop follows (vel_bias_loop_s)
+        self._reported_rest_ne_m_s = (0.0, 0.0)  # what it does not, which the reported velocity shows
         self._jerk = ManoeuvreJerk()  # the manoeuvre jerk that sizes the bias's kicks
         offset_rng = random.Random(f"vel-offset:{params.seed}")  # its own stream: the bias's stays as it was
         self._offset_ne_m_s = (offset_rng.gauss(0.0, params.vel_offset_m_s), offset_rng.gauss(0.0, params.vel_offset_m_s))
@@ -522,9 +531,22 @@ class VehicleModel:
             sn, se = self._smooth_bias_ne_m_s
             bn, be = sn + a * (bn - sn), se + a * (be - se)
             self._smooth_bias_ne_m_s = (bn, be)
+        if p.vel_bias_loop_s > 0.0:
+            a = 1.0 - math.exp(-dt_s / p.vel_bias_loop_s)
+            fn, fe = self._flown_bias_ne_m_s
+            fn, fe = fn + a * (bn - fn), fe + a * (be - fe)
+            self._flown_bias_ne_m_s = (fn, fe)
+            self._reported_rest_ne_m_s = (fn - bn, fe - be)
+            bn, be = fn, fe
         if not self.state.on_ground:
             self.state.pos_ned_m[0] += (bn + self._offset_ne_m_s[0]) * dt_s
             self.state.pos_ned_m[1] += (be + self._offset_ne_m_s[1]) * dt_s
+
+    def reported_vel_ned_m_s(self) -> tuple[float, float, float]:
+        """Velocity as the autopilot reports it: the loop's, plus the part of the estimate's error
+        quicker than the loop (``vel_bias_loop_s``; none without it)."""
+        v, (rn, re) = self.state.vel_ned_m_s, self._reported_rest_ne_m_s
+        return (v[0] + rn, v[1] + re, v[2])
 
     def _move(self, v_old: list[float], v_new: list[float], dt_s: float) -> None:
         """Trapezoidal position update: exact for constant acceleration over the step."""

@@ -128,8 +128,8 @@ MAX_TAIL_SHARE = 0.95
 #: The mission ``vehicle:`` block's keys, in the order files and ``companion identify`` write them.
 VEHICLE_MODEL_KEYS = ("a_max_m_s2", "delay_s", "lag_s", "accel_lag_s", "tail_share", "tail_tc_s", "speed_sag_s",
                       "yaw_rate_max_deg_s", "vel_bias_m_s", "vel_bias_tc_s", "vel_bias_jerk_s2",
-                      "vel_bias_jerk_max_m_s3", "vel_bias_smooth_s", "vel_offset_m_s", "pos_delay_s", "accel_ff_gain",
-                      "accel_ff_lag_s")
+                      "vel_bias_jerk_max_m_s3", "vel_bias_smooth_s", "vel_bias_loop_s", "vel_offset_m_s", "pos_delay_s",
+                      "accel_ff_gain", "accel_ff_lag_s")
 #: The keys that describe the response to an acceleration target (``guidance.accel_feedforward``):
 #: a log flown without one says nothing of them.
 ACCEL_FF_KEYS = ("accel_ff_gain", "accel_ff_lag_s")
@@ -174,6 +174,12 @@ class VehicleModel:
     vel_bias_smooth_s : the vehicle flies that bias through a first-order low-pass of this time
         constant, >= 0 (0: as it is; ArduCopter SITL's: about 0.7 s, its drift being smoother within
         a second or two than a first-order bias's; ``companion.sim.wander.fit_smoothing``).
+    vel_bias_loop_s : where the estimate's error is quicker than the velocity loop, the vehicle
+        does not fly it and the reported velocity shows it: the vehicle flies the bias through a
+        first-order lag of this time constant and the reported velocity carries the rest (the
+        bias less what is flown, with the opposite sign), >= 0 (0: the whole bias is flown and the
+        reported velocity is smooth; PX4 SIH's estimate jitters above half a hertz while its
+        vehicle does not, docs/real_firmware.md). The mock flies it.
     vel_offset_m_s : beside that bias, the estimate misses a velocity that stays put for a whole
         flight: an offset on each horizontal axis drawn once, with this standard deviation (>= 0;
         0: none; ArduCopter SITL's: about 1 cm/s). On a straight leg an autopilot's position loop
@@ -203,6 +209,7 @@ class VehicleModel:
     vel_bias_jerk_s2: float = 0.0
     vel_bias_jerk_max_m_s3: float = 1.0
     vel_bias_smooth_s: float = 0.0
+    vel_bias_loop_s: float = 0.0
     vel_offset_m_s: float = 0.0
     pos_delay_s: float = 0.0
     accel_ff_gain: float = 1.0

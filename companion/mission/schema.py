@@ -417,6 +417,10 @@ MISSION = Object(
                     "vel_bias_smooth_s": Field(Number(minimum=0, maximum=60), "time constant of the low-pass "
                                                "through which the vehicle flies that bias (0: as it is)",
                                                default=0.0),
+                    "vel_bias_loop_s": Field(Number(minimum=0, maximum=60), "time constant of the lag through "
+                                             "which the vehicle's velocity loop follows that bias; the rest "
+                                             "shows in the reported velocity (0: the whole bias is flown)",
+                                             default=0.0),
                     "vel_offset_m_s": Field(Number(minimum=0, maximum=10), "standard deviation of the "
                                             "velocity estimate's offset, drawn once per flight on each "
                                             "horizontal axis (the mock flies it; the guidance does not "

@@ -310,6 +310,38 @@ def test_velocity_estimate_bias_drifts_the_position_as_a_gauss_markov_process(sm
         assert measured == pytest.approx(expected, rel=0.1), (lag_s, measured, expected)
 
 
+def test_a_bias_quicker_than_the_loop_shows_in_the_reported_velocity_and_the_rest_is_flown():
+    # With vel_bias_loop_s = L the vehicle flies its bias b through a first-order lag L (f) and the
+    # reported velocity carries f - b. b - f is b through the high-pass L s / (1 + L s): for a
+    # first-order Gauss-Markov b (sigma, tau) its variance is sigma^2 L / (tau + L) (cov(b, f) =
+    # var(f) = sigma^2 tau / (tau + L)). The position drifts by the flown part, whose change over
+    # T has the smoothed bias's mean square with tau2 = L (the closed form of the test above).
+    sigma, tau, loop, dt, seconds = 0.25, 4.0, 0.5, 0.02, 2000.0
+    model = copter(vel_bias_m_s=sigma, vel_bias_tc_s=tau, vel_bias_loop_s=loop, seed=11)
+    n = round(seconds / dt)
+    north, east, reported = [], [], []
+    for _ in range(n):
+        model.step_multirotor(dt, (0.0, 0.0, 0.0), 0.0)
+        north.append(model.state.pos_ned_m[0])
+        east.append(model.state.pos_ned_m[1])
+        reported.extend(model.reported_vel_ned_m_s()[:2])
+    assert max(abs(v) for v in model.state.vel_ned_m_s) < 1e-12  # the loop's own velocity stays put
+    measured = math.sqrt(sum(v * v for v in reported) / len(reported))
+    assert measured == pytest.approx(sigma * math.sqrt(loop / (tau + loop)), rel=0.1)
+
+    def f(c: float, lag_s: float) -> float:
+        return c * lag_s - c * c * (1.0 - math.exp(-lag_s / c))
+
+    for lag_s in (1.0, 10.0):
+        k = round(lag_s / dt)
+        sq = [(a[i + k] - a[i]) ** 2 for a in (north, east) for i in range(n - k)]
+        var = tau / (tau**2 - loop**2) * (tau * f(tau, lag_s) - loop * f(loop, lag_s))
+        assert math.sqrt(sum(sq) / len(sq)) == pytest.approx(math.sqrt(2.0 * sigma**2 * var), rel=0.1), lag_s
+    smooth = copter(vel_bias_m_s=sigma, vel_bias_tc_s=tau, seed=11)  # without the key: nothing reported
+    run(smooth, 10.0)
+    assert smooth.reported_vel_ned_m_s() == tuple(smooth.state.vel_ned_m_s)
+
+
 @pytest.mark.parametrize("radius_m, level", [(None, 0.01), (25.0, math.hypot(0.01, 0.04 * 0.2)),
                                                (5.0, math.hypot(0.01, 0.04 * 1.0))])
 def test_the_bias_settles_to_the_level_the_manoeuvre_jerk_sets(radius_m, level):
