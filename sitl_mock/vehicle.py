@@ -543,9 +543,12 @@ class VehicleModel:
             self.state.pos_ned_m[1] += (be + self._offset_ne_m_s[1]) * dt_s
 
     def reported_vel_ned_m_s(self) -> tuple[float, float, float]:
-        """Velocity as the autopilot reports it: the loop's, plus the part of the estimate's error
-        quicker than the loop (``vel_bias_loop_s``; none without it)."""
+        """Velocity as the autopilot reports it: the loop's, plus, airborne, the part of the
+        estimate's error quicker than the loop (``vel_bias_loop_s``; none without it). On the
+        ground it reports standing still, as it stands."""
         v, (rn, re) = self.state.vel_ned_m_s, self._reported_rest_ne_m_s
+        if self.state.on_ground:
+            return (v[0], v[1], v[2])
         return (v[0] + rn, v[1] + re, v[2])
 
     def _move(self, v_old: list[float], v_new: list[float], dt_s: float) -> None:

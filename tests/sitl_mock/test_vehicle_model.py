@@ -340,6 +340,8 @@ def test_a_bias_quicker_than_the_loop_shows_in_the_reported_velocity_and_the_res
     smooth = copter(vel_bias_m_s=sigma, vel_bias_tc_s=tau, seed=11)  # without the key: nothing reported
     run(smooth, 10.0)
     assert smooth.reported_vel_ned_m_s() == tuple(smooth.state.vel_ned_m_s)
+    model.state.on_ground = True  # landed: it reports standing still
+    assert model.reported_vel_ned_m_s() == (0.0, 0.0, 0.0) and model._reported_rest_ne_m_s != (0.0, 0.0)
 
 
 @pytest.mark.parametrize("radius_m, level", [(None, 0.01), (25.0, math.hypot(0.01, 0.04 * 0.2)),
