@@ -111,6 +111,11 @@ def _lag_gain(dt_s: float, tau_s: float) -> float:
     return 1.0 if tau_s <= 0.0 else 1.0 - math.exp(-dt_s / tau_s)
 
 
+def _lagged(state_ne: tuple[float, float], target_ne: tuple[float, float], gain: float) -> tuple[float, float]:
+    """One step of a first-order lag on a north-east pair, ``gain`` from :func:`_lag_gain`."""
+    return (state_ne[0] + gain * (target_ne[0] - state_ne[0]), state_ne[1] + gain * (target_ne[1] - state_ne[1]))
+
+
 @dataclass(frozen=True)
 class VehicleParams:
     """Physical and inner-loop parameters of the mock vehicle.
@@ -527,15 +532,11 @@ class VehicleModel:
         bn, be = phi * bn + kick * g(0.0, 1.0), phi * be + kick * g(0.0, 1.0)
         self._bias_ne_m_s = (bn, be)
         if p.vel_bias_smooth_s > 0.0:
-            a = 1.0 - math.exp(-dt_s / p.vel_bias_smooth_s)
-            sn, se = self._smooth_bias_ne_m_s
-            bn, be = sn + a * (bn - sn), se + a * (be - se)
-            self._smooth_bias_ne_m_s = (bn, be)
+            bn, be = self._smooth_bias_ne_m_s = _lagged(self._smooth_bias_ne_m_s, (bn, be),
+                                                        _lag_gain(dt_s, p.vel_bias_smooth_s))
         if p.vel_bias_loop_s > 0.0:
-            a = 1.0 - math.exp(-dt_s / p.vel_bias_loop_s)
-            fn, fe = self._flown_bias_ne_m_s
-            fn, fe = fn + a * (bn - fn), fe + a * (be - fe)
-            self._flown_bias_ne_m_s = (fn, fe)
+            fn, fe = self._flown_bias_ne_m_s = _lagged(self._flown_bias_ne_m_s, (bn, be),
+                                                       _lag_gain(dt_s, p.vel_bias_loop_s))
             self._reported_rest_ne_m_s = (fn - bn, fe - be)
             bn, be = fn, fe
         if not self.state.on_ground:

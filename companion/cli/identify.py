@@ -19,9 +19,8 @@ from companion.guidance.types import ACCEL_FF_KEYS, VEHICLE_MODEL_KEYS
 
 _DECIMALS = {"a_max_m_s2": 2, "delay_s": 3, "lag_s": 3, "accel_lag_s": 3, "tail_share": 3, "tail_tc_s": 3,
              "speed_sag_s": 3, "yaw_rate_max_deg_s": 1, "vel_bias_m_s": 4, "vel_bias_tc_s": 2,
-             "vel_bias_jerk_s2": 4, "vel_bias_jerk_max_m_s3": 2, "vel_bias_smooth_s": 1, "vel_bias_loop_s": 3, "vel_offset_m_s": 4,
-             "pos_delay_s": 3,
-             "accel_ff_gain": 3, "accel_ff_lag_s": 3}
+             "vel_bias_jerk_s2": 4, "vel_bias_jerk_max_m_s3": 2, "vel_bias_smooth_s": 1, "vel_bias_loop_s": 3,
+             "vel_offset_m_s": 4, "pos_delay_s": 3, "accel_ff_gain": 3, "accel_ff_lag_s": 3}
 # Values a grid chooses or a bound the log shows: printed without a standard error.
 _NO_ERROR = ("yaw_rate_max_deg_s", "vel_bias_jerk_max_m_s3", "vel_bias_smooth_s", "vel_bias_loop_s")
 
