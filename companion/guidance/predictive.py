@@ -1012,7 +1012,12 @@ class PredictiveGuidance:
         1. One batched rollout holds every candidate look-ahead distance flown with the previous
            plan (shifted to now) and with no plan, and the shifted plan perturbed segment by
            segment at the previous look-ahead. The cheapest candidate is kept; if it has no plan,
-           the plan restarts from zero and step 2 waits a period.
+           the plan restarts from zero and step 2 starts there, with a Jacobian taken at zero (a
+           batch of one row per plan segment). Far off the path a plan whose first segment
+           saturates can be worth its first period and not the rest of its segment, so every
+           other re-optimisation dropped it; a drop that flew the pursuit alone for a period made
+           the command alternate by metres per second squared at half the re-optimisation rate
+           (docs/benchmarks.md, "A plan that alternated far off the path").
         2. Gauss-Newton on the plan: the perturbed rows give the Jacobian of the residuals, the
            damped normal equations a step (scaled into the limit), and a second batched rollout
            tries the full, half and quarter step; a step is kept only if it lowers the cost.
@@ -1040,12 +1045,15 @@ class PredictiveGuidance:
         previous = int(np.argmin(np.abs(look - self._look_m)))
         self._look_m = float(look[best % k])
         cost = float(costs[best])
-        if best >= k:  # dropping the plan is cheapest: start again from zero, refine next time
+        if best >= k:  # dropping the plan is cheapest: start again from zero
             plan = np.zeros(m)
-            refine = False
         if refine:
-            r0 = res[previous]
-            jac = (res[2 * k:] - r0).T / eps
+            if best >= k:  # the Jacobian at zero
+                r0 = res[best]
+                jac = (self.rollout(state, np.full(m, self._look_m), eps * np.eye(m), d_ref) - r0).T / eps
+            else:
+                r0 = res[previous]
+                jac = (res[2 * k:] - r0).T / eps
             for iteration in range(p.refine_iterations):
                 jtj = jac.T @ jac
                 damping = 1e-6 + 1e-3 * np.trace(jtj) / m

@@ -77,13 +77,13 @@ def test_once_within_the_band_the_approach_is_never_charged_at_it_again():
     assert not approach_charged_at_band(law.params, law._joined, 12.0, -10.0)
 
 
-def _join(speed_m_s: float, lambda_s4: float, on: bool):
+def _join(speed_m_s: float, lambda_s4: float, on: bool, y0_m: float = 40.0):
     path = LinePath(x0=-50.0, length_m=2000.0)
     law = PredictiveGuidance(path, PredictiveParams(lambda_s4=lambda_s4, lag_s=0.2, a_max_m_s2=5.0,
                                                     approach_at_band=on))
-    res = simulate(path, law, VehicleState(0.0, -40.0, math.pi / 2, speed_m_s), GuidanceParams(speed_m_s=speed_m_s),
+    res = simulate(path, law, VehicleState(0.0, -y0_m, math.pi / 2, speed_m_s), GuidanceParams(speed_m_s=speed_m_s),
                    model=LagModel(0.2, 5.0), t_max_s=25.0)
-    d = res.y_m  # started 40 m right of the x axis, flying square at it: any d > 0 is a crossing
+    d = res.y_m  # started y0_m right of the x axis, flying square at it: any d > 0 is a crossing
     i0 = int(np.flatnonzero(np.abs(d) <= 1.0)[0])
     return {"over": float(np.max(d)), "touch_s": float(res.t_s[i0]),
             "d_rms": float(np.sqrt(np.mean(d[i0:] ** 2))),
@@ -93,19 +93,29 @@ def _join(speed_m_s: float, lambda_s4: float, on: bool):
 
 @pytest.mark.parametrize("lambda_s4", [0.03, 0.3])
 def test_a_fast_join_charged_at_the_band_lands_instead_of_diving_through_the_path(lambda_s4):
-    # 12 m/s square at a line from 40 m, 0.2 s lag, 5 m/s^2: the turn onto the line at the limit
-    # is 28.8 m wide. Charged for its metres, the plan holds the dive and turns at the limit too
-    # late: it crosses the line by 0.40-0.56 m. Charged at the band, it turns in early enough to
-    # cross by less than half of that; from the touch it flies with less error (a third less at
-    # lambda 0.03) and a fifth or more less acceleration, and touches the band at most 0.8 s later.
-    plain, band = _join(12.0, lambda_s4, False), _join(12.0, lambda_s4, True)
-    assert plain["over"] > 0.35
-    assert band["over"] < 0.5 * plain["over"]
-    assert band["d_rms"] < 0.9 * plain["d_rms"]
-    assert band["a_rms"] < 0.8 * plain["a_rms"]
-    assert band["touch_s"] < plain["touch_s"] + 0.8
-    assert band["a_max"] <= 5.0 + 1e-12
-    assert band["settled"] < 0.05
+    # 11-13 m/s square at a line from 40-50 m, 0.2 s lag, 5 m/s^2: the turn onto the line at the
+    # limit is 24-34 m wide. Charged for its metres, the plan holds the dive and turns at the limit
+    # too late: it crosses the line by 0.2-1.3 m. Charged at the band, it turns in early enough to
+    # cross by less on every one of the nine joins, and in the median by a sixth (lambda 0.03) and
+    # a quarter (0.3) as much, with 0.57 and 0.69 of the error from the touch and 0.68 and 0.46 of
+    # the acceleration, touching the band at most 1.3 s later. A family of joins, not one: which
+    # local optimum one join's plan settles in can move its figures by half (12 m/s from 40 m at
+    # lambda 0.03 crosses by 0.17 or 0.41 m as the plan's refinement after a drop changed;
+    # docs/benchmarks.md, "A plan that alternated far off the path").
+    ratios = []
+    for speed in (11.0, 12.0, 13.0):
+        for y0 in (40.0, 45.0, 50.0):
+            plain, band = _join(speed, lambda_s4, False, y0), _join(speed, lambda_s4, True, y0)
+            assert plain["over"] > 0.2
+            assert band["over"] < plain["over"]
+            assert band["touch_s"] < plain["touch_s"] + 1.5
+            assert band["a_max"] <= 5.0 + 1e-12
+            assert band["settled"] < 0.05
+            ratios.append([band[k] / plain[k] for k in ("over", "d_rms", "a_rms")])
+    over, d_rms, a_rms = np.median(ratios, axis=0)
+    assert over < 0.5
+    assert d_rms < 0.9
+    assert a_rms < 0.8
 
 
 def test_a_vehicle_that_turns_tightly_flies_as_before():

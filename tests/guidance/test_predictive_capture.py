@@ -164,12 +164,14 @@ def _join(lambda_s4: float, heading_deg: float, weight: float):
 def test_weighing_the_overshoot_lands_the_join_without_arriving_later(lambda_s4, heading_deg):
     # From 10 m right of a line, flying at it (0.3 s lag, 5 m/s^2). Weighed like the approach, the
     # plan crosses the line by 0.15-0.46 m to touch the 1 m band a little sooner; weighed 4 times
-    # (from more than SIDE_MIN_OFFSET_M off), it crosses by 30-50 % less, touches the band no
-    # later than 0.1 s after, and from there flies less acceleration for at most 5 % more error.
+    # (from more than SIDE_MIN_OFFSET_M off), it crosses by a quarter to a half less (26 % at
+    # lambda 0.03, where it was 38 % while a dropped plan waited a period before its refinement:
+    # docs/benchmarks.md, "A plan that alternated far off the path"), touches the band no later
+    # than 0.1 s after, and from there flies less acceleration for at most 5 % more error.
     over1, touch1, d1, a1 = _join(lambda_s4, heading_deg, 1.0)
     over4, touch4, d4, a4 = _join(lambda_s4, heading_deg, 4.0)
     assert over1 > 0.15
-    assert over4 < 0.7 * over1
+    assert over4 < 0.8 * over1
     assert touch4 <= touch1 + 0.1
     assert d4 <= 1.05 * d1
     assert a4 < a1

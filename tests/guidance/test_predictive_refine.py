@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from companion.guidance.predictive import PredictiveGuidance, PredictiveParams
 from companion.guidance.types import GuidanceParams, VehicleState
@@ -50,3 +51,32 @@ def test_the_second_step_never_raises_the_plans_cost_and_lowers_it_on_a_join():
     assert np.count_nonzero(lowered > 1e-9) > c1.size // 2
     assert lowered.max() > 0.05
     assert abs(res.y_m[-1]) < 0.05  # and the flight joined the line
+
+
+def _period_means_before_the_band(d0_m: float, speed_m_s: float, lag_s: float, heading_deg: float) -> np.ndarray:
+    """The command averaged over each 0.2-s re-optimisation period, from a start ``d0_m`` right of a
+    line until the vehicle first comes within 1 m of it (a lag of ``lag_s``, 5 m/s^2, lambda 0.03)."""
+    path = LinePath(x0=-100.0, length_m=800.0)
+    law = PredictiveGuidance(path, PredictiveParams(lambda_s4=0.03, lag_s=lag_s, a_max_m_s2=5.0))
+    res = simulate(path, law, VehicleState(0.0, -d0_m, math.radians(heading_deg), speed_m_s),
+                   GuidanceParams(speed_m_s=speed_m_s), model=LagModel(lag_s, 5.0), t_max_s=15.0, keep_outputs=True)
+    a = np.array([o.a_cmd_m_s2 for o in res.outputs])
+    ticks = 10  # a re-optimisation period at the default 50 Hz
+    periods = int(np.flatnonzero(np.abs(res.y_m) <= 1.0)[0]) // ticks
+    return a[:periods * ticks].reshape(periods, ticks).mean(axis=1)
+
+
+@pytest.mark.parametrize("d0_m, speed_m_s, lag_s, heading_deg", [(27.0, 9.0, 0.33, -45.0), (20.0, 9.0, 0.3, -30.0)])
+def test_a_far_start_flies_a_command_that_does_not_alternate_between_re_optimisations(d0_m, speed_m_s, lag_s,
+                                                                                       heading_deg):
+    # A fast vehicle 20-27 m off a line, pointing away from it, turns in at the limit. Its plan's
+    # first 0.5-s segment saturates; after one 0.2-s period the rest of that segment is worth less
+    # than no plan, so the next re-optimisation drops it. If a drop flew the pursuit alone until the
+    # re-optimisation after (the law before this test), the command swung by 4-6 m/s^2 and back on
+    # alternate periods. No period's mean command may stand out from both its neighbours, on the
+    # same side, by more than half the limit (2.5 m/s^2).
+    m = _period_means_before_the_band(d0_m, speed_m_s, lag_s, heading_deg)
+    assert m.size > 20  # the approach lasts more than 4 s
+    rise, fall = m[1:-1] - m[:-2], m[1:-1] - m[2:]
+    spikes = (rise * fall > 0.0) & (np.minimum(np.abs(rise), np.abs(fall)) > 2.5)
+    assert not np.any(spikes), np.round(m, 2)
