@@ -970,7 +970,15 @@ class PredictiveGuidance:
         return res
 
     def _shifted_plan(self, t_s: float) -> np.ndarray:
-        """The previous plan re-read from ``t_s`` on (segments past its horizon decay to zero)."""
+        """The previous plan re-read from ``t_s`` on (segments past its horizon decay to zero).
+
+        Each new segment takes the old segment that holds its middle. A shift of less than half a
+        segment moves nothing: at the defaults (re-optimised every 0.2 s, 0.5-s segments) the
+        previous plan is re-read as it stands, its first segment held again, and the refinement
+        starts from there. Plans kept on a grid fixed in time (a segment ends where it ended, the
+        first one partly flown) were tried on the tune range and lost 4 of its 187 clean
+        scenarios (docs/benchmarks.md, "A plan that alternated far off the path").
+        """
         mids = t_s - self._plan_t0 + (np.arange(self._segments) + 0.5) * self._segment_s
         idx = np.floor(mids / self._segment_s).astype(int)
         out = np.where(idx < self._segments, self._plan[np.minimum(idx, self._segments - 1)], 0.0)
