@@ -976,8 +976,8 @@ class PredictiveGuidance:
         segment moves nothing: at the defaults (re-optimised every 0.2 s, 0.5-s segments) the
         previous plan is re-read as it stands, its first segment held again, and the refinement
         starts from there. Plans kept on a grid fixed in time (a segment ends where it ended, the
-        first one partly flown) were tried on the tune range and lost 4 of its 187 clean
-        scenarios (docs/benchmarks.md, "A plan that alternated far off the path").
+        first one partly flown) were tried on the tune range: 183 of its 200 scenarios clean
+        against 187 (docs/benchmarks.md, "A plan that alternated far off the path").
         """
         mids = t_s - self._plan_t0 + (np.arange(self._segments) + 0.5) * self._segment_s
         idx = np.floor(mids / self._segment_s).astype(int)

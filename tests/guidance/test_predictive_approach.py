@@ -98,7 +98,7 @@ def test_a_fast_join_charged_at_the_band_lands_instead_of_diving_through_the_pat
     # too late: it crosses the line by 0.2-1.3 m. Charged at the band, it turns in early enough to
     # cross by less on every one of the nine joins, and in the median by a sixth (lambda 0.03) and
     # a quarter (0.3) as much, with 0.57 and 0.69 of the error from the touch and 0.68 and 0.46 of
-    # the acceleration, touching the band at most 1.3 s later. A family of joins, not one: which
+    # the acceleration, touching the band at most 1.32 s later. A family of joins, not one: which
     # local optimum one join's plan settles in can move its figures by half (12 m/s from 40 m at
     # lambda 0.03 crosses by 0.17 or 0.41 m as the plan's refinement after a drop changed;
     # docs/benchmarks.md, "A plan that alternated far off the path").
