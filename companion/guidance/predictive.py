@@ -857,8 +857,7 @@ class PredictiveGuidance:
         self._s_win, self._d_win = 0.0, 0.0  # the law's projection and cross-track error, this tick
         self.reoptimisations = 0
         # The vehicle model the law plans with: the nominal one, or what the monitor found.
-        self._lag_s = p.lag_s
-        self._a_max = p.a_max_m_s2
+        self._lag_s, self._a_max = p.lag_s, p.a_max_m_s2
         self.monitor = ModelMonitor(p.lag_s, p.a_max_m_s2) if p.adapt_model else None
         self._joined = False  # within SIDE_MIN_OFFSET_M of the path since the law started
         self._capture_side = 0  # the side of the capture turn (companion.guidance.capture), 0: none
@@ -873,8 +872,7 @@ class PredictiveGuidance:
 
     # -- the vehicle model the law believes ---------------------------------------------------
     def _alpha(self, dt_s: float) -> float:
-        tau = self._lag_s
-        return 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt_s / tau)
+        return 1.0 if self._lag_s <= 0.0 else 1.0 - math.exp(-dt_s / self._lag_s)
 
     def _air(self, state: VehicleState) -> tuple[float, float]:
         """Air heading and airspeed from the ground velocity and the known wind."""
@@ -970,19 +968,12 @@ class PredictiveGuidance:
         return res
 
     def _shifted_plan(self, t_s: float) -> np.ndarray:
-        """The previous plan re-read from ``t_s`` on (segments past its horizon decay to zero).
-
-        Each new segment takes the old segment that holds its middle. A shift of less than half a
-        segment moves nothing: at the defaults (re-optimised every 0.2 s, 0.5-s segments) the
-        previous plan is re-read as it stands, its first segment held again, and the refinement
-        starts from there. Plans kept on a grid fixed in time (a segment ends where it ended, the
-        first one partly flown) were tried on the tune range: 183 of its 200 scenarios clean
-        against 187 (docs/benchmarks.md, "A plan that alternated far off the path").
-        """
+        """The previous plan re-read from ``t_s`` on (segments past its horizon decay to zero), each
+        new segment the old one holding its middle: at the defaults (0.2-s period, 0.5-s segments)
+        as it stands (docs/benchmarks.md, "A plan that alternated far off the path")."""
         mids = t_s - self._plan_t0 + (np.arange(self._segments) + 0.5) * self._segment_s
         idx = np.floor(mids / self._segment_s).astype(int)
-        out = np.where(idx < self._segments, self._plan[np.minimum(idx, self._segments - 1)], 0.0)
-        return out
+        return np.where(idx < self._segments, self._plan[np.minimum(idx, self._segments - 1)], 0.0)
 
     def _reference(self, state: VehicleState) -> np.ndarray | None:
         """The capture reference over the rollout steps, from the vehicle's error and its rate."""
@@ -1020,11 +1011,7 @@ class PredictiveGuidance:
         1. One batched rollout holds every candidate look-ahead distance flown with the previous
            plan (shifted to now) and with no plan, and the shifted plan perturbed segment by
            segment at the previous look-ahead. The cheapest candidate is kept; if it has no plan,
-           the plan restarts from zero and step 2 starts there, with a Jacobian taken at zero (a
-           batch of one row per plan segment). Far off the path a plan whose first segment
-           saturates can be worth its first period and not the rest of its segment, so every
-           other re-optimisation dropped it; a drop that flew the pursuit alone for a period made
-           the command alternate by metres per second squared at half the re-optimisation rate
+           the plan restarts from zero and step 2 starts there, with a Jacobian taken at zero
            (docs/benchmarks.md, "A plan that alternated far off the path").
         2. Gauss-Newton on the plan: the perturbed rows give the Jacobian of the residuals, the
            damped normal equations a step (scaled into the limit), and a second batched rollout
@@ -1053,15 +1040,12 @@ class PredictiveGuidance:
         previous = int(np.argmin(np.abs(look - self._look_m)))
         self._look_m = float(look[best % k])
         cost = float(costs[best])
-        if best >= k:  # dropping the plan is cheapest: start again from zero
+        if best >= k:  # dropping the plan is cheapest: start again from zero, refine from there
             plan = np.zeros(m)
         if refine:
-            if best >= k:  # the Jacobian at zero
-                r0 = res[best]
-                jac = (self.rollout(state, np.full(m, self._look_m), eps * np.eye(m), d_ref) - r0).T / eps
-            else:
-                r0 = res[previous]
-                jac = (res[2 * k:] - r0).T / eps
+            r0 = res[best] if best >= k else res[previous]
+            rows = self.rollout(state, np.full(m, self._look_m), eps * np.eye(m), d_ref) if best >= k else res[2 * k:]
+            jac = (rows - r0).T / eps
             for iteration in range(p.refine_iterations):
                 jtj = jac.T @ jac
                 damping = 1e-6 + 1e-3 * np.trace(jtj) / m
