@@ -23,8 +23,9 @@ from sitl_mock.vehicle import VehicleParams
 _REQUIRED_MODEL_KEYS = ("a_max_m_s2", "lag_s")
 _MODEL_DEFAULTS = {"delay_s": 0.0, "accel_lag_s": 0.0, "tail_share": 0.0, "tail_tc_s": 1.0, "speed_sag_s": 0.0,
                    "yaw_rate_max_deg_s": 90.0, "vel_bias_m_s": 0.0, "vel_bias_tc_s": 3.0,
-                   "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0, "vel_bias_smooth_s": 0.0, "vel_bias_loop_s": 0.0,
-                   "vel_offset_m_s": 0.0, "pos_delay_s": 0.0, "accel_ff_gain": 1.0, "accel_ff_lag_s": 0.0}
+                   "vel_bias_jerk_s2": 0.0, "vel_bias_jerk_max_m_s3": 1.0, "vel_bias_smooth_s": 0.0,
+                   "vel_bias_loop_s": 0.0, "vel_offset_m_s": 0.0, "pos_delay_s": 0.0, "accel_ff_gain": 1.0,
+                   "accel_ff_lag_s": 0.0}
 
 
 def load_vehicle_model(path: str) -> dict[str, float]:

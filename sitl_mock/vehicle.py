@@ -229,9 +229,7 @@ class VehicleParams:
                 raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
         for name in ("tau_vel_s", "tau_yaw_rate_s", "tau_roll_s", "pos_noise_m", "delay_s", "accel_lag_s",
                      "speed_sag_s", "vel_bias_m_s", "vel_bias_jerk_s2", "vel_bias_smooth_s", "vel_bias_loop_s",
-                     "vel_offset_m_s",
-                     "pos_delay_s",
-                     "accel_ff_gain", "accel_ff_lag_s"):
+                     "vel_offset_m_s", "pos_delay_s", "accel_ff_gain", "accel_ff_lag_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
