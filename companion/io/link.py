@@ -50,6 +50,7 @@ import socket
 import struct
 import time
 from dataclasses import dataclass, field
+from types import FrameType
 from typing import Callable
 
 from pymavlink import mavutil
@@ -508,11 +509,57 @@ def connect_autopilot(connect: str, *, heartbeat_timeout_s: float,
 
 
 # Ctrl-C (KeyboardInterrupt) and SIGTERM (the runner's _Terminate) raise in the main thread between
-# any two bytecodes. Held while a packet is sent and recorded, they wait until both are done and
-# cannot fall between the two: a setpoint the autopilot flew is always in the tlog. (The companion's
-# other threads block them for good, so that none of them takes the signal meanwhile.)
+# any two bytecodes, whichever thread the signal reached (a library's native thread as well). The
+# runner's handlers (:func:`hold_interrupts_during_sends`) wait while a packet is sent and recorded,
+# so that the two cannot be split: a setpoint the autopilot flew is always in the tlog.
 INTERRUPT_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
-CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX
+CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX (the mock's reader thread blocks them)
+
+
+class _SendHold:
+    """While entered (a packet being sent and recorded), the wrapped handlers wait; the first
+    signal that came meanwhile is handled on leaving."""
+
+    def __init__(self) -> None:
+        self.depth = 0
+        self.pending: list[tuple[Callable, int, FrameType | None]] = []
+
+    def wrap(self, handler: Callable[[int, FrameType | None], object]) -> Callable[[int, FrameType | None], None]:
+        def wait_for_the_send(signum: int, frame: FrameType | None) -> None:
+            if self.depth:
+                self.pending.append((handler, signum, frame))
+            else:
+                handler(signum, frame)
+
+        return wait_for_the_send
+
+    def __enter__(self) -> None:
+        self.depth += 1
+
+    def __exit__(self, *exc: object) -> None:
+        self.depth -= 1
+        if not self.depth and self.pending:
+            (handler, signum, frame), self.pending = self.pending[0], []
+            handler(signum, frame)
+
+
+_SENDS = _SendHold()
+
+
+def hold_interrupts_during_sends(on_sigterm: Callable[[int, FrameType | None], object]) -> dict:
+    """Install ``on_sigterm`` for SIGTERM and keep SIGINT's handler, both waiting for any send in
+    progress; returns the previous handlers (for :func:`restore_handlers`). Main thread only
+    (``ValueError`` elsewhere, as :func:`signal.signal`)."""
+    old = {signal.SIGTERM: signal.signal(signal.SIGTERM, _SENDS.wrap(on_sigterm))}
+    on_sigint = signal.getsignal(signal.SIGINT)
+    if callable(on_sigint):  # not when started with Ctrl-C ignored (SIG_IGN)
+        old[signal.SIGINT] = signal.signal(signal.SIGINT, _SENDS.wrap(on_sigint))
+    return old
+
+
+def restore_handlers(old: dict) -> None:
+    for signum, handler in old.items():
+        signal.signal(signum, handler)
 
 
 class _TlogTap:
@@ -522,18 +569,12 @@ class _TlogTap:
         self.link = link
 
     def write(self, buf) -> None:
-        try:
-            if CAN_HOLD_SIGNALS:
-                signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPT_SIGNALS)
+        with _SENDS:  # an interrupt that comes meanwhile is raised on leaving, after the record
             if not self.link._transport.send(bytes(buf)):
                 return
             if self.link.tlog is not None:
                 self.link.tlog.write(bytes(buf))
             self.link.sent += 1
-        finally:
-            # An interrupt that came meanwhile is raised here, after the record.
-            if CAN_HOLD_SIGNALS:
-                signal.pthread_sigmask(signal.SIG_UNBLOCK, INTERRUPT_SIGNALS)
 
 
 # Over 300 lines on purpose: the one pymavlink adapter (as mavutil's connection is one object):

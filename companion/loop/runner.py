@@ -54,7 +54,9 @@ from companion.io.link import (
     READINESS_MSG_IDS,
     MavLink,
     connect_autopilot,
+    hold_interrupts_during_sends,
     readiness_text,
+    restore_handlers,
 )
 from companion.io.setpoints import G_M_S2
 from companion.io.tlog import TlogWriter, default_tlog_path, write_mission_beside
@@ -387,9 +389,9 @@ class FlightRunner:
     def run(self) -> dict:
         """Fly the mission. Returns the summary; raises CompanionError on refusal/abort."""
         try:
-            old_term = signal.signal(signal.SIGTERM, _raise_terminate)
+            old_handlers = hold_interrupts_during_sends(_raise_terminate)
         except ValueError:
-            old_term = None  # not in the main thread: SIGTERM handling left to the caller
+            old_handlers = {}  # not in the main thread: signal handling left to the caller
         try:
             s, profile, config, clock, guidance = self._prepare()
             # The interpreter is set up (a full collection, which can take a second on a busy
@@ -414,10 +416,10 @@ class FlightRunner:
             self.exit_reason = str(err).splitlines()[0] if str(err) else type(err).__name__
             raise
         finally:
-            self._close(old_term)
+            self._close(old_handlers)
         return self.summary
 
-    def _close(self, old_term) -> None:
+    def _close(self, old_handlers: dict) -> None:
         if self.flight is not None:
             self.flight.close()
         self.status.close()
@@ -426,8 +428,7 @@ class FlightRunner:
             self.link.close()
         if self.tlog is not None:
             self.tlog.close()
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
+        restore_handlers(old_handlers)
 
     def _summarise(self) -> dict:
         r = self.record

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import signal
 import time
 
@@ -24,3 +26,46 @@ def test_the_first_sigterm_ends_the_flight_and_a_second_one_during_clean_up_is_i
         _deliver_sigterm()  # as a supervisor repeating its SIGTERM while the tlog is being flushed
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+# Ctrl-C or SIGTERM reaching the companion while its main thread sends a setpoint, with the handlers the
+# runner installs. The signal goes to a thread that does not block it (here a plain thread; in a
+# flight, numpy's BLAS threads or the guidance worker), whose arrival makes the main thread run the
+# handler at its next bytecode. Run in a fresh interpreter, whose threads the test knows.
+_SEND_DURING_A_SIGNAL = """
+import os, signal, sys, threading, time
+from companion.io.link import _TlogTap
+from companion.loop.runner import _raise_terminate, _Terminate, hold_interrupts_during_sends
+
+class Wire:
+    sent = []
+    def send(self, packet):
+        self.sent.append(packet)
+        os.kill(os.getpid(), getattr(signal, sys.argv[1]))
+        time.sleep(0.2)  # a handler that can run now would run before the record
+        return True
+
+class Tlog:
+    records = []
+    def write(self, packet):
+        self.records.append(packet)
+
+class Link:
+    _transport, tlog, sent = Wire(), Tlog(), 0
+
+threading.Thread(target=threading.Event().wait, daemon=True).start()  # blocks no signal
+hold_interrupts_during_sends(_raise_terminate)
+try:
+    _TlogTap(Link()).write(b"setpoint")
+    print("no interrupt")
+except (KeyboardInterrupt, _Terminate):
+    print(len(Wire.sent), len(Tlog.records))
+"""
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_an_interrupt_while_a_setpoint_is_sent_waits_for_its_record_whichever_thread_takes_it(sig):
+    out = subprocess.run([sys.executable, "-c", _SEND_DURING_A_SIGNAL, sig], capture_output=True, text=True, timeout=30)
+    assert out.returncode == 0, out.stderr
+    # One packet on the wire, one in the tlog; the interrupt raised after both (not swallowed).
+    assert out.stdout.split() == ["1", "1"], out.stdout
