@@ -28,10 +28,11 @@ def test_the_first_sigterm_ends_the_flight_and_a_second_one_during_clean_up_is_i
         signal.signal(signal.SIGTERM, previous)
 
 
-# Ctrl-C or SIGTERM reaching the companion while its main thread sends a setpoint, with the handlers the
-# runner installs. The signal goes to a thread that does not block it (here a plain thread; in a
-# flight, numpy's BLAS threads or the guidance worker), whose arrival makes the main thread run the
-# handler at its next bytecode. Run in a fresh interpreter, whose threads the test knows.
+# Ctrl-C or SIGTERM reaching the companion while its main thread sends a setpoint, with the
+# handlers the runner installs. The signal may go to any thread that does not block it (here a
+# plain thread; in a flight, numpy's and scipy's BLAS threads or the guidance worker), and its
+# arrival makes the main thread run the handler at its next bytecode. Run in a fresh interpreter,
+# whose threads the test knows.
 _SEND_DURING_A_SIGNAL = """
 import os, signal, sys, threading, time
 from companion.io.link import _TlogTap
