@@ -48,6 +48,7 @@ import select
 import signal
 import socket
 import struct
+import threading
 import time
 from dataclasses import dataclass, field
 from types import FrameType
@@ -517,8 +518,9 @@ CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX (the mock's reade
 
 
 class _SendHold:
-    """While entered (a packet being sent and recorded), the wrapped handlers wait; the first
-    signal that came meanwhile is handled on leaving."""
+    """While the main thread is inside (sending and recording a packet), the wrapped handlers
+    wait; the first signal that came meanwhile is handled on leaving. Handlers run in the main
+    thread only, so another thread's sends do not hold them."""
 
     def __init__(self) -> None:
         self.depth = 0
@@ -534,9 +536,12 @@ class _SendHold:
         return wait_for_the_send
 
     def __enter__(self) -> None:
-        self.depth += 1
+        if threading.current_thread() is threading.main_thread():
+            self.depth += 1
 
     def __exit__(self, *exc: object) -> None:
+        if threading.current_thread() is not threading.main_thread():
+            return
         self.depth -= 1
         if not self.depth and self.pending:
             (handler, signum, frame), self.pending = self.pending[0], []

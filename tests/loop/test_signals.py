@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
-import signal
+import threading
 import time
 
 import pytest
 
+from companion.io.link import _SendHold
 from companion.loop.runner import _raise_terminate, _Terminate
 
 
@@ -70,3 +72,28 @@ def test_an_interrupt_while_a_setpoint_is_sent_waits_for_its_record_whichever_th
     assert out.returncode == 0, out.stderr
     # One packet on the wire, one in the tlog; the interrupt raised after both (not swallowed).
     assert out.stdout.split() == ["1", "1"], out.stdout
+
+
+def test_only_the_main_threads_sends_hold_the_handlers():
+    """Handlers run in the main thread; a send in another thread must not defer them (the deferred
+    handler would then run, and raise, in that thread instead of the main one)."""
+    hold, calls = _SendHold(), []
+    handler = hold.wrap(lambda signum, frame: calls.append(signum))
+    inside, release = threading.Event(), threading.Event()
+
+    def send_elsewhere():
+        with hold:
+            inside.set()
+            release.wait(10)
+
+    worker = threading.Thread(target=send_elsewhere)
+    worker.start()
+    inside.wait(10)
+    handler(signal.SIGINT, None)  # the main thread, while the other thread is inside a send
+    assert calls == [signal.SIGINT]
+    release.set()
+    worker.join(10)
+    with hold:  # the main thread's own send: held until it leaves
+        handler(signal.SIGTERM, None)
+        assert calls == [signal.SIGINT]
+    assert calls == [signal.SIGINT, signal.SIGTERM]
