@@ -1,4 +1,5 @@
-"""The flight's SIGTERM handling: the first one ends the flight, a second one cannot cut its clean-up short."""
+"""The flight's signal handling: the first SIGTERM ends the flight and a second one cannot cut its
+clean-up short; no interrupt falls between a setpoint's send and its record."""
 
 from __future__ import annotations
 
