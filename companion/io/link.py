@@ -510,11 +510,12 @@ def connect_autopilot(connect: str, *, heartbeat_timeout_s: float,
 
 
 # Ctrl-C (KeyboardInterrupt) and SIGTERM (the runner's _Terminate) raise in the main thread between
-# any two bytecodes, whichever thread the signal reached (a library's native thread as well). The
-# runner's handlers (:func:`hold_interrupts_during_sends`) wait while a packet is sent and recorded,
-# so that the two cannot be split: a setpoint the autopilot flew is always in the tlog.
+# any two bytecodes, whichever thread the signal reached (a library's native thread as well). While a
+# packet is sent and recorded the sending thread blocks them, and the runner's handlers
+# (:func:`hold_interrupts_during_sends`) wait, so that the two cannot be split: a setpoint the
+# autopilot flew is always in the tlog.
 INTERRUPT_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
-CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX (the mock's reader thread blocks them)
+CAN_HOLD_SIGNALS = hasattr(signal, "pthread_sigmask")  # POSIX
 
 
 class _SendHold:
@@ -574,12 +575,21 @@ class _TlogTap:
         self.link = link
 
     def write(self, buf) -> None:
-        with _SENDS:  # an interrupt that comes meanwhile is raised on leaving, after the record
-            if not self.link._transport.send(bytes(buf)):
-                return
-            if self.link.tlog is not None:
-                self.link.tlog.write(bytes(buf))
-            self.link.sent += 1
+        # A signal another thread took: the runner's handlers wait until the hold is left. A signal
+        # sent to this thread, whatever its handler: blocked until the mask is lifted. Either way
+        # the interrupt is raised after the record.
+        with _SENDS:
+            try:
+                if CAN_HOLD_SIGNALS:
+                    signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPT_SIGNALS)
+                if not self.link._transport.send(bytes(buf)):
+                    return
+                if self.link.tlog is not None:
+                    self.link.tlog.write(bytes(buf))
+                self.link.sent += 1
+            finally:
+                if CAN_HOLD_SIGNALS:
+                    signal.pthread_sigmask(signal.SIG_UNBLOCK, INTERRUPT_SIGNALS)
 
 
 # Over 300 lines on purpose: the one pymavlink adapter (as mavutil's connection is one object):
