@@ -525,12 +525,12 @@ class _SendHold:
 
     def __init__(self) -> None:
         self.depth = 0
-        self.pending: list[tuple[Callable, int, FrameType | None]] = []
+        self.pending: tuple[Callable, int, FrameType | None] | None = None  # the first signal held
 
     def wrap(self, handler: Callable[[int, FrameType | None], object]) -> Callable[[int, FrameType | None], None]:
         def wait_for_the_send(signum: int, frame: FrameType | None) -> None:
             if self.depth:
-                self.pending.append((handler, signum, frame))
+                self.pending = self.pending or (handler, signum, frame)
             else:
                 handler(signum, frame)
 
@@ -544,8 +544,8 @@ class _SendHold:
         if threading.current_thread() is not threading.main_thread():
             return
         self.depth -= 1
-        if not self.depth and self.pending:
-            (handler, signum, frame), self.pending = self.pending[0], []
+        if not self.depth and self.pending is not None:
+            (handler, signum, frame), self.pending = self.pending, None
             handler(signum, frame)
 
 
