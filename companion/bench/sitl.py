@@ -282,7 +282,7 @@ def run_bench(args, targets: list[Target]) -> dict:
     for t in targets:
         runs = [flight_row(fly_on(t, False, mission, opts, root / f"{t.autopilot}-mock" / f"seed-{k}", timeout_s, k),
                            limit) for k in seeds]
-        mock = median_row(runs)
+        mock = median_row(runs) if runs else {}  # --mock-seeds 0: the real alone
         real_dir = root / f"{t.autopilot}-real"
         real_runs = [flight_row(fly_on(t, True, mission, opts, real_dir / f"run-{k}" if args.real_runs > 1 else real_dir,
                                        timeout_s, later_s=k * stagger_s), limit) for k in range(args.real_runs)]
@@ -334,7 +334,8 @@ def format_table(result: dict) -> str:
     seeds, reals = result.get("mock_seeds", 1), result.get("real_runs", 1)
     for ap, r in result["autopilots"].items():
         real_head = {0: f"real {ap}: not flown", 1: f"real {ap}"}.get(reals, f"real {ap} (median of {reals})")
-        lines.append(f"{'':16s}{'mock' if seeds == 1 else f'mock (median of {seeds})':>12s}{real_head:>16s}")
+        mock_head = {0: "mock: not flown", 1: "mock"}.get(seeds, f"mock (median of {seeds})")
+        lines.append(f"{'':16s}{mock_head:>12s}{real_head:>16s}")
         for k in METRICS:
             lines.append(f"{k:16s}{_cell(r['mock'], k):>12s}{_cell(r['real'], k):>16s}")
         for side in ("mock", "real"):
@@ -375,7 +376,7 @@ def register(subparsers) -> None:
     p.add_argument("--a-limit-m-s2", type=float, help="limit for sat_share (default: the mission's vehicle/guidance limit)")
     p.add_argument("--mock-seeds", type=int, default=1, metavar="N",
                    help="fly the mock N times, with seeds 0..N-1 of its velocity-estimate bias, and report "
-                        "each metric's median (default 1)")
+                        "each metric's median (default 1; 0: the real alone)")
     p.add_argument("--real-runs", type=int, default=1, metavar="N",
                    help="fly the real binary N times, each started afresh and flown --real-stagger-s later "
                         "after its boot than the one before, and report each metric's median (default 1; "
@@ -395,10 +396,13 @@ def register(subparsers) -> None:
 def run(args) -> int:
     if not (args.max_duration_s > 0 and args.speedup > 0):
         raise CompanionError("bench sitl: --max-duration-s and --speedup: expected numbers > 0")
-    if args.mock_seeds < 1:
-        raise CompanionError(f"bench sitl: --mock-seeds: expected an integer >= 1, got {args.mock_seeds}")
+    if args.mock_seeds < 0:
+        raise CompanionError(f"bench sitl: --mock-seeds: expected an integer >= 0, got {args.mock_seeds}")
     if args.real_runs < 0:
         raise CompanionError(f"bench sitl: --real-runs: expected an integer >= 0, got {args.real_runs}")
+    if args.mock_seeds == 0 and args.real_runs == 0:
+        raise CompanionError("bench sitl: --mock-seeds 0 and --real-runs 0: nothing to fly (expected at least one "
+                             "flight)")
     if args.real_stagger_s is not None and not (math.isfinite(args.real_stagger_s) and args.real_stagger_s >= 0):
         raise CompanionError(f"bench sitl: --real-stagger-s: expected a number >= 0, got {args.real_stagger_s}")
     targets = check_binaries(args)

@@ -212,9 +212,34 @@ def test_a_later_real_flight_waits_that_much_longer_after_boot(monkeypatch, tmp_
     assert "exited 1 at start" in row["error"] and waits == [100.0]  # PX4's 10 s warm-up + 90 s
 
 
-@pytest.mark.parametrize("option, value", [("--real-runs", "-1"), ("--real-stagger-s", "-1")])
-def test_bad_real_run_options_are_refused_with_one_line(capsys, option, value):
+def test_no_mock_seed_flies_the_real_alone(monkeypatch, tmp_path):
+    # --mock-seeds 0: the real flights only; the mock side is empty and there is no ratio.
+    from argparse import Namespace
+
+    from companion.bench import sitl
+
+    calls = []
+
+    def fake_fly_on(target, real, mission, opts, workdir, timeout_s, seed=0, later_s=0.0):
+        calls.append(real)
+        return {"d_rms_m": 0.3, "exit": "max duration", "tlog": "unused"}
+
+    monkeypatch.setattr(sitl, "fly_on", fake_fly_on)
+    monkeypatch.setattr(sitl, "log_figures", lambda tlog, limit: {})
+    args = Namespace(mission="missions/paper_sine.yaml", method=None, a_limit_m_s2=2.0, max_duration_s=60.0,
+                     speedup=1.0, workdir=str(tmp_path), mock_seeds=0, real_runs=1, real_stagger_s=None)
+    out = sitl.run_bench(args, [px4_target("px4", "etc", None)])
+    side = out["autopilots"]["px4"]
+    assert calls == [True] and side["mock"] == {} and side["d_rms_ratio_real_mock"] is None
+    assert side["real"]["d_rms_m"] == pytest.approx(0.3)
+    text = format_table(out)
+    assert "mock: not flown" in text and "d_rms real / mock: -" in text
+
+
+@pytest.mark.parametrize("options", [["--real-runs", "-1"], ["--real-stagger-s", "-1"], ["--mock-seeds", "-1"],
+                                     ["--mock-seeds", "0", "--real-runs", "0"]])
+def test_bad_real_run_options_are_refused_with_one_line(capsys, options):
     assert main(["bench", "sitl", "missions/paper_sine.yaml", "--px4", sys.executable, "--px4-romfs", ".",
-                 option, value]) == 2
+                 *options]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and option in err[0]
+    assert len(err) == 1 and options[0] in err[0]
