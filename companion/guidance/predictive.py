@@ -60,6 +60,10 @@ its feedback core and adds:
     error, until the rollout first comes that close, as if it lay on that band's edge: the
     approach costs its time, not its metres (:func:`charge_approach_at_band`). Charged for its
     metres, a fast vehicle dived square at the path and landed on its far side.
+11. **A course observer** (``course_tc_s``, an option, off by default): the law reads the course
+    its lag model turns by its commands, pulled towards the reported course with that time
+    constant (:class:`CourseObserver`), for an estimate that jitters quicker than the vehicle
+    turns; on the real PX4 it saved less acceleration than it cost tracking.
 
 Far from the path the look-ahead circle may not reach it; the pursuit then uses
 ``L_eff = max(L, sqrt(2) |d|)``, a 45 degree capture angle as ArduPilot's L1 controller does.
@@ -78,6 +82,7 @@ sequence of inputs gives the same outputs.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -144,6 +149,12 @@ class PredictiveParams:
         path, charge each rollout's cross-track error, until the rollout first comes that close,
         as if it lay on that band's edge (see :func:`charge_approach_at_band`); False charges
         the whole approach, as the law did before.
+    course_tc_s : time constant (s), >= 0, of the course observer (:func:`observe_course`); 0
+        hands the law the course as reported. Above 0 the law reads the course the lag model
+        turns by its own commands, pulled towards the reported course with this time constant,
+        so that an estimate that jitters quicker than the vehicle turns (PX4 SIH's,
+        docs/real_firmware.md, "The course observed through the model") is not answered with
+        acceleration.
     """
 
     lambda_s4: float = DEFAULT_LAMBDA_S4
@@ -165,6 +176,7 @@ class PredictiveParams:
     terminal_cost: bool = True
     overshoot_weight: float = 4.0
     approach_at_band: bool = True
+    course_tc_s: float = 0.0
 
     def __post_init__(self) -> None:
         def number(name: str) -> float:
@@ -178,7 +190,7 @@ class PredictiveParams:
                 raise ValueError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         if not 0.0 <= number("curvature_ff") <= 1.0:
             raise ValueError(f"curvature_ff: expected a number in [0, 1], got {self.curvature_ff!r}")
-        for name in ("lambda_s4", "lag_s", "capture_tc_scale"):
+        for name in ("lambda_s4", "lag_s", "capture_tc_scale", "course_tc_s"):
             if not (math.isfinite(number(name)) and number(name) >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {getattr(self, name)!r}")
         if not (math.isfinite(number("overshoot_weight")) and number("overshoot_weight") >= 1):
@@ -697,6 +709,77 @@ def _project_one(win: _Window, band: _Band, x_m: float, y_m: float,
     return int(i0[0]), float(d[0])
 
 
+#: Below this ground speed (m/s) the course observer hands the law the reported course: near
+#: hover a course is noise, and the model's turn rate a / V is no prediction.
+OBSERVER_MIN_SPEED_M_S = 1.0
+
+
+def observe_course(course_hat_rad: float, reported_rad: float, a_from_m_s2: float, a_to_m_s2: float,
+                   speed_m_s: float, dt_s: float, tc_s: float) -> float:
+    """One step of the course observer (``PredictiveParams.course_tc_s``): the observed course
+    turned by the lateral acceleration the lag model flew over ``dt_s`` (from ``a_from_m_s2`` to
+    ``a_to_m_s2``, the trapezoid, at ``speed_m_s``), then moved towards the reported course by
+    ``1 - exp(-dt_s / tc_s)`` of the (wrapped) difference. Frame-agnostic (any horizontal frame
+    whose angles grow in the sense a positive acceleration turns); radians, wrapped to [-pi, pi].
+
+    A complementary filter: a change of the reported course slower than about ``tc_s`` passes
+    (a disturbance, a model that turns too little), a quicker one is replaced by the model's own
+    turn, which has no lag of its own. With a model that turns as the vehicle does and a reported
+    course that follows it, the observer stays on it exactly:
+
+    >>> a, v, dt = 2.0, 5.0, 0.02  # a steady turn
+    >>> hat = 0.0
+    >>> for k in range(1, 51):
+    ...     hat = observe_course(hat, a / v * dt * k, a, a, v, dt, 0.3)
+    >>> abs(hat - a / v * dt * 50) < 1e-12
+    True
+
+    An offset of the reported course decays as ``exp(-t / tc_s)``; flying straight, a reported
+    step of 0.1 rad is half followed after ``tc_s ln 2``:
+
+    >>> hat = 0.0
+    >>> for k in range(int(round(0.3 * math.log(2) / 0.002))):
+    ...     hat = observe_course(hat, 0.1, 0.0, 0.0, v, 0.002, 0.3)
+    >>> round(hat, 3)
+    0.05
+    """
+    turned = course_hat_rad + 0.5 * (a_from_m_s2 + a_to_m_s2) / speed_m_s * dt_s
+    gap = math.remainder(reported_rad - turned, 2.0 * math.pi)
+    observed = turned + (1.0 - math.exp(-dt_s / tc_s)) * gap
+    return math.remainder(observed, 2.0 * math.pi)
+
+
+def air_heading(state: VehicleState, wind_x_m_s: float, wind_y_m_s: float) -> tuple[float, float]:
+    """Air heading (rad) and airspeed (m/s, at least ``MIN_SPEED_M_S``) from the ground velocity
+    and the known wind (the state's frame)."""
+    gx = state.speed_m_s * math.cos(state.course_rad) - wind_x_m_s
+    gy = state.speed_m_s * math.sin(state.course_rad) - wind_y_m_s
+    return math.atan2(gy, gx), max(math.hypot(gx, gy), MIN_SPEED_M_S)
+
+
+class CourseObserver:
+    """The course :class:`PredictiveGuidance` reads (``PredictiveParams.course_tc_s``): the reported
+    one with a time constant of 0; else :func:`observe_course` every tick, and the reported course
+    on the first tick or below ``OBSERVER_MIN_SPEED_M_S`` (the observer restarts from it)."""
+
+    def __init__(self, tc_s: float) -> None:
+        self.tc_s = float(tc_s)
+        self.course_rad: float | None = None  # the observed course, once there is one
+
+    def observe(self, state: VehicleState, dt_s: float | None, a_from_m_s2: float, a_to_m_s2: float) -> VehicleState:
+        """``state`` with its course observed, ``dt_s`` after the last tick (None: the first), over
+        which the lag model's acceleration went from ``a_from_m_s2`` to ``a_to_m_s2``."""
+        if not self.tc_s > 0.0:
+            return state
+        hat = self.course_rad
+        if hat is None or dt_s is None or state.speed_m_s < OBSERVER_MIN_SPEED_M_S:
+            self.course_rad = float(state.course_rad)
+            return state
+        self.course_rad = observe_course(hat, float(state.course_rad), a_from_m_s2, a_to_m_s2,
+                                         float(state.speed_m_s), dt_s, self.tc_s)
+        return dataclasses.replace(state, course_rad=self.course_rad)
+
+
 # Model monitor (adapt_model): candidate lags and limits as multiples of the nominal ones.
 MONITOR_LAG_FACTORS = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 MONITOR_LAG_FLOOR_S = 0.2  # the candidates of a nominal lag of 0 (ideal: unknown) are multiples of this
@@ -852,6 +935,7 @@ class PredictiveGuidance:
         self._a_hat = 0.0  # lateral acceleration the vehicle is flying, per the lag model
         self._last_cmd = 0.0
         self._last_t: float | None = None
+        self._observer = CourseObserver(p.course_tc_s)  # the course the law reads
         self._next_reopt_t = -math.inf
         self._win: _Window | None = None
         self._s_win, self._d_win = 0.0, 0.0  # the law's projection and cross-track error, this tick
@@ -874,13 +958,6 @@ class PredictiveGuidance:
     def _alpha(self, dt_s: float) -> float:
         return 1.0 if self._lag_s <= 0.0 else 1.0 - math.exp(-dt_s / self._lag_s)
 
-    def _air(self, state: VehicleState) -> tuple[float, float]:
-        """Air heading and airspeed from the ground velocity and the known wind."""
-        p = self.params
-        gx = state.speed_m_s * math.cos(state.course_rad) - p.wind_x_m_s
-        gy = state.speed_m_s * math.sin(state.course_rad) - p.wind_y_m_s
-        return math.atan2(gy, gx), max(math.hypot(gx, gy), MIN_SPEED_M_S)
-
     def rollout(self, state: VehicleState, look_m: np.ndarray, plans: np.ndarray,
                 d_ref_m: np.ndarray | None = None) -> np.ndarray:
         """Batched closed-loop rollouts; returns the residuals ``(K, 2 * steps + 3)``.
@@ -897,7 +974,7 @@ class PredictiveGuidance:
         win = self._win
         assert win is not None  # set by reoptimise() before any rollout
         k = look_m.size
-        heading, v_air = self._air(state)
+        heading, v_air = air_heading(state, p.wind_x_m_s, p.wind_y_m_s)
         step_plans = plans.T[self._seg_of_step]  # every row's correction at every step
         cff, lead, limit = p.curvature_ff, self._lag_s, self._a_max
         to_go = _cost_to_go_cached(self._lag_s, p.lambda_s4) if p.terminal_cost else _NO_COST_TO_GO
@@ -1072,17 +1149,19 @@ class PredictiveGuidance:
 
     def step(self, t_s: float, state: VehicleState) -> GuidanceOutput:
         p = self.params
-        if self._last_t is not None:  # advance the lag model over the last tick with the last command,
+        a_from, dt = self._a_hat, None if self._last_t is None else max(t_s - self._last_t, 0.0)
+        if dt is not None:  # advance the lag model over the last tick with the last command,
             flown = min(max(self._last_cmd, -self._a_max), self._a_max)  # as far as the model flies it
-            self._a_hat += (flown - self._a_hat) * self._alpha(max(t_s - self._last_t, 0.0))
+            self._a_hat += (flown - self._a_hat) * self._alpha(dt)
         self._last_t = t_s
         monitor = self.monitor
-        if monitor is not None:
+        if monitor is not None:  # it reads the course as reported: what the vehicle flew
             monitor.update(t_s, state.course_rad, state.speed_m_s, self._last_cmd)
             self._lag_s = monitor.lag_s
             self._a_max = min(monitor.a_max_m_s2, p.a_max_m_s2)
             if monitor.fallback:
                 self._plan = np.zeros(self._segments)
+        state = self._observer.observe(state, dt, a_from, self._a_hat)
         f = path_frame(self.path, state.x_m, state.y_m, self._s_hint, state.course_rad)
         self._s_hint = f.s_m
         self._s_win, self._d_win = f.s_m, f.crosstrack_m

@@ -97,7 +97,8 @@ class TwoPhaseGuidance:
         if params.method == "predictive":
             self._predictive = PredictiveGuidance(path, PredictiveParams(
                 lambda_s4=params.lambda_s4, lag_s=params.rollout_tau_s, a_max_m_s2=params.a_max_m_s2,
-                wind_x_m_s=params.wind_x_m_s, wind_y_m_s=params.wind_y_m_s, adapt_model=params.adapt_model))
+                wind_x_m_s=params.wind_x_m_s, wind_y_m_s=params.wind_y_m_s, adapt_model=params.adapt_model,
+                course_tc_s=params.course_tc_s))
         self._started = False
         self._midcourse: MidcourseGuidance | None = None
         self._finished = False

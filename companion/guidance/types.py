@@ -74,6 +74,9 @@ class GuidanceParams:
     adapt_model : ``predictive`` only: watch the flown lateral acceleration and re-plan with the
         model that explains it, or fall back to the feedback core (on when the mission has a
         ``vehicle:`` block; :class:`companion.guidance.predictive.ModelMonitor`).
+    course_tc_s : ``predictive`` only: time constant of its course observer (s, >= 0; 0: the
+        course as reported; :func:`companion.guidance.predictive.observe_course`). Off by default
+        on every autopilot (docs/real_firmware.md, "The course observed through the model").
     """
 
     method: str = PAPER_METHOD
@@ -93,6 +96,7 @@ class GuidanceParams:
     adapt_model: bool = False
     period_s: float | None = None
     lookahead_m: float | None = None
+    course_tc_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.adapt_model, bool):
@@ -117,7 +121,7 @@ class GuidanceParams:
         value = self.a_max_m_s2
         if isinstance(value, bool) or not (isinstance(value, (int, float)) and value > 0):
             raise ValueError(f"a_max_m_s2: expected a number > 0 (inf for no limit), got {value!r}")
-        for name in ("k1_max", "k2_max", "rollout_tau_s", "lambda_s4"):
+        for name in ("k1_max", "k2_max", "rollout_tau_s", "lambda_s4", "course_tc_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")

@@ -520,6 +520,7 @@ class _Builder(_Checks):
         values["a_max_m_s2"] = math.inf if g.get("a_max_m_s2") is None else g["a_max_m_s2"]
         values["period_s"] = g.get("period_s")  # absent: the baseline's own default
         values["lookahead_m"] = g.get("lookahead_m")
+        values["course_tc_s"] = g.get("course_tc_s") or 0.0  # absent (or unusable, reported): off
         model = self.build_vehicle()
         if model is not None:
             # A vehicle model: the rollouts assume its lag (plus its dead time) and the law never

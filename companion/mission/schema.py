@@ -347,6 +347,10 @@ MISSION = Object(
                                       "NAVL1_PERIOD 17 s, NPFG_PERIOD 10 s)"),
                     "lookahead_m": Field(Number(exclusive_minimum=0, maximum=1000), "pure_pursuit: "
                                          "look-ahead distance L_d (absent: 10 m)"),
+                    "course_tc_s": Field(Number(minimum=0, maximum=10), "predictive: time constant "
+                                         "of the course observer, which reads the course the lag "
+                                         "model turns, pulled towards the reported one (absent or "
+                                         "0: the course as reported; docs/guidance.md)"),
                     "l1_m": Field(_POSITIVE, "look-ahead distance L1", default=10.0),
                     "rate_hz": Field(Number(exclusive_minimum=0, maximum=1000), "guidance rate",
                                      default=50.0),
