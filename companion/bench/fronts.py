@@ -38,8 +38,9 @@ SIDES = ("real", "mock")
 def flown_config(mission_file: str, fly_args: list[str] | None, method: str | None = None) -> dict:
     """What a bench flight flew: the mission's name, its law (``method`` replacing the mission's,
     as ``bench sitl --method`` does; ``lambda_s4`` for ``predictive`` when the mission states it,
-    else None: the flight's own default, :func:`companion.loop.limits.mission_for_tail`), its
-    acceleration-target setting and the extra ``companion fly`` options (None: unknown)."""
+    else None: the flight's own default, :func:`companion.loop.limits.mission_for_tail`; and its
+    ``course_tc_s`` when above 0, else None), its acceleration-target setting and the extra
+    ``companion fly`` options (None: unknown)."""
     from companion.mission.loader import load_mission, mission_text_with_method, parse_mission
 
     m = load_mission(mission_file) if method is None else \
@@ -47,6 +48,7 @@ def flown_config(mission_file: str, fly_args: list[str] | None, method: str | No
     law = m.guidance.method
     return {"mission_name": m.name, "method": law,
             "lambda_s4": m.guidance.lambda_s4 if law == "predictive" and m.lambda_stated else None,
+            "course_tc_s": m.guidance.course_tc_s if law == "predictive" and m.guidance.course_tc_s > 0 else None,
             "accel_feedforward": m.accel_feedforward, "fly_args": None if fly_args is None else list(fly_args)}
 
 
@@ -89,6 +91,7 @@ def points(results: list[tuple[str, dict]], side: str) -> list[dict]:
             group = (flown["mission_name"], autopilot, side, flown.get("accel_feedforward"),
                      None if args is None else " ".join(args))
             out.append({"group": group, "law": flown["method"], "lambda_s4": flown.get("lambda_s4"),
+                        "course_tc_s": flown.get("course_tc_s"),
                         "a_rms_m_s2": float(a), "d_rms_close_m": float(d), "file": source})
     return out
 
@@ -113,7 +116,7 @@ def compare(pts: list[dict], a_tolerance: float = 0.0) -> list[dict]:
         mission, autopilot, side, ff, args = key
         out.append({"mission_name": mission, "autopilot": autopilot, "side": side, "accel_feedforward": ff,
                     "fly_args": args,
-                    "predictive": [{k: p[k] for k in ("lambda_s4", "a_rms_m_s2", "d_rms_close_m", "file")}
+                    "predictive": [{k: p[k] for k in ("lambda_s4", "course_tc_s", "a_rms_m_s2", "d_rms_close_m", "file")}
                                    for p in pred],
                     "laws": laws})
     return out
@@ -130,8 +133,9 @@ def format_table(groups: list[dict]) -> str:
         args = "unknown" if g["fly_args"] is None else (g["fly_args"] or "none")
         lines.append(f"{g['mission_name']} on {g['autopilot']} ({g['side']}), acceleration target {ff}, "
                      f"fly options: {args}")
-        front = ", ".join(f"{p['d_rms_close_m']:.4f} @ {p['a_rms_m_s2']:.3f} (lambda {_num(p['lambda_s4'], 'g')})"
-                          for p in g["predictive"])
+        front = ", ".join(f"{p['d_rms_close_m']:.4f} @ {p['a_rms_m_s2']:.3f} (lambda {_num(p['lambda_s4'], 'g')}"
+                          + ("" if p["course_tc_s"] is None else f", course observed over {p['course_tc_s']:g} s")
+                          + ")" for p in g["predictive"])
         lines.append(f"  predictive: {front or 'not flown'}")
         for law in g["laws"]:
             verdict = "met" if law["met"] else (

@@ -185,7 +185,7 @@ def test_no_real_run_flies_the_mock_alone_and_starts_no_binary(monkeypatch, tmp_
     assert calls == [("px4", False, 0), ("px4", False, 1), ("px4", False, 2)]
     assert all(o[-4:] == ["--speed-hold-tc-s", "2", "--drift-tc-s", "0"] for o in opts_seen)  # every flight
     # ... and the result says what was flown (companion bench fronts groups by it)
-    assert out["flown"] == {"mission_name": "paper-sine", "method": "corrector", "lambda_s4": None,
+    assert out["flown"] == {"mission_name": "paper-sine", "method": "corrector", "lambda_s4": None, "course_tc_s": None,
                             "accel_feedforward": None, "fly_args": ["--speed-hold-tc-s", "2", "--drift-tc-s", "0"]}
     side = out["autopilots"]["px4"]
     assert side["real"] == {} and side["d_rms_ratio_real_mock"] is None and "real_runs" not in side

@@ -128,3 +128,20 @@ def test_a_tolerance_reads_the_front_that_much_further_right():
     assert tol["laws"][0]["predictive_d_rms_close_m"] == pytest.approx(0.30 - 0.20 * (a - 0.70) / 0.10)
     assert tol["laws"][0]["met"]
     assert main(["bench", "fronts", "x.json", "--a-tolerance", "-0.1"]) != 0
+
+
+def test_a_predictive_flight_with_its_course_observed_says_so(tmp_path):
+    # flown_config records the observer's time constant of a predictive mission that states one
+    # (None otherwise), and the front's line names it beside the lambda.
+    base = "{name: l, speed_m_s: 5, path: {type: waypoints, points_m: [[0, 0], [50, 0]]}, guidance: {method: %s}}"
+    observed, plain = tmp_path / "observed.yaml", tmp_path / "plain.yaml"
+    observed.write_text(base % "predictive, course_tc_s: 0.3")
+    plain.write_text(base % "predictive")
+    assert fronts.flown_config(str(observed), [])["course_tc_s"] == 0.3
+    assert fronts.flown_config(str(plain), [])["course_tc_s"] is None
+    assert fronts.flown_config(str(observed), [], method="pure_pursuit")["course_tc_s"] is None
+    r = result("predictive", 0.70, 0.30, 0.3)
+    r["flown"]["course_tc_s"] = 0.3
+    [group] = fronts.compare(fronts.points([("a", r), ("b", result("pure_pursuit", 0.75, 0.25))], "real"))
+    text = fronts.format_table([group])
+    assert "0.3000 @ 0.700 (lambda 0.3, course observed over 0.3 s)" in text
