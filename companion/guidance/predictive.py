@@ -89,6 +89,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from companion.geometry.frames import angle_diff_rad, wrap_pi
 from companion.guidance import rollout_kernel
 from companion.guidance.capture import SIDE_MIN_OFFSET_M, capture_command_m_s2, pursuit_capture_side
 from companion.guidance.path_frame import PathLike, frame_output, frame_samples, path_frame
@@ -720,7 +721,7 @@ def observe_course(course_hat_rad: float, reported_rad: float, a_from_m_s2: floa
     turned by the lateral acceleration the lag model flew over ``dt_s`` (from ``a_from_m_s2`` to
     ``a_to_m_s2``, the trapezoid, at ``speed_m_s``), then moved towards the reported course by
     ``1 - exp(-dt_s / tc_s)`` of the (wrapped) difference. Frame-agnostic (any horizontal frame
-    whose angles grow in the sense a positive acceleration turns); radians, wrapped to [-pi, pi].
+    whose angles grow in the sense a positive acceleration turns); radians, wrapped to (-pi, pi].
 
     A complementary filter: a change of the reported course slower than about ``tc_s`` passes
     (a disturbance, a model that turns too little), a quicker one is replaced by the model's own
@@ -744,9 +745,8 @@ def observe_course(course_hat_rad: float, reported_rad: float, a_from_m_s2: floa
     0.05
     """
     turned = course_hat_rad + 0.5 * (a_from_m_s2 + a_to_m_s2) / speed_m_s * dt_s
-    gap = math.remainder(reported_rad - turned, 2.0 * math.pi)
-    observed = turned + (1.0 - math.exp(-dt_s / tc_s)) * gap
-    return math.remainder(observed, 2.0 * math.pi)
+    gap = angle_diff_rad(reported_rad, turned)
+    return wrap_pi(turned + (1.0 - math.exp(-dt_s / tc_s)) * gap)
 
 
 def air_heading(state: VehicleState, wind_x_m_s: float, wind_y_m_s: float) -> tuple[float, float]:

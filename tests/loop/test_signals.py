@@ -38,8 +38,8 @@ def test_the_first_sigterm_ends_the_flight_and_a_second_one_during_clean_up_is_i
 # whose threads the test knows.
 _SEND_DURING_A_SIGNAL = """
 import os, signal, sys, threading, time
-from companion.io.link import _TlogTap
-from companion.loop.runner import _raise_terminate, _Terminate, hold_interrupts_during_sends
+from companion.io.link import _TlogTap, hold_interrupts_during_sends
+from companion.loop.runner import _raise_terminate, _Terminate
 
 class Wire:
     sent = []
